@@ -1,0 +1,308 @@
+"""Typed, frozen configuration grouped by concern, plus the presets.
+
+``make_config(env, method, preset, ...)`` builds a complete config from a task's
+protocol (``envs.TASKS``) and a preset; ``override(config, {'ddpg.actor_lr': 3e-4})``
+changes fields by dotted name with type checking; ``validate(config)`` raises a
+one-line ``ValueError`` for anything that would fail or silently misbehave,
+before anything is compiled.
+
+Presets:
+* ``paper``: the 2018 OpenAI-baselines DDPG the paper builds on (64-64 +
+  LayerNorm, action at the critic's second layer, Adam 1e-4 / 1e-3, batch 64,
+  tau 0.01, critic L2 1e-2, cycles of 100 rollout steps and 50 updates,
+  adaptive parameter noise 0.2) and the paper's meta schedule per task.
+* ``modern``: a 2020s DDPG (256-256 without LayerNorm, action at the critic's
+  input, Adam 3e-4 both, batch 256, tau 0.005, no critic L2, one update per
+  env step, Gaussian noise 0.1, 5000 uniformly random warm-up steps).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import typing
+from typing import Any
+
+import envs
+
+METHODS = ("ddpg", "meta")
+PRESETS = ("paper", "modern")
+NOISES = ("normal", "ou", "adaptive-param", "none")
+TEACHERS = ("independent", "variance")
+STUDENT_FROM = ("pi", "lookahead")
+BASELINES = ("lookahead", "fresh")
+
+
+@dataclasses.dataclass(frozen=True)
+class EnvConfig:
+    name: str = "pendulum"            # task, one of envs.TASKS
+    source: str = "gymnasium"         # 'gymnasium' (reference) or 'brax' (fast, simplified models)
+    episode_length: int = 0           # time limit; 0 = gymnasium's for the task
+
+
+@dataclasses.dataclass(frozen=True)
+class DDPGConfig:
+    hidden: tuple[int, ...] = (64, 64)  # hidden widths of actor and critic
+    layer_norm: bool = True             # LayerNorm after each hidden Dense (baselines)
+    critic_action_layer: int = 1        # hidden layer whose input gets the action (0 = critic input)
+    final_init: float = 3e-3            # last layers ~ U(-final_init, final_init)
+    actor_lr: float = 1e-4
+    critic_lr: float = 1e-3
+    critic_l2: float = 1e-2             # L2 on the critic's hidden kernels (baselines: scale * sum(w^2) / 2)
+    batch_size: int = 64
+    tau: float = 0.01                   # soft target update rate, after every update
+    gamma: float = 0.99
+    normalize_obs: bool = True          # running mean/std of observations
+    obs_clip: float = 5.0               # normalised observations clipped to +-obs_clip
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseConfig:
+    """Exploration noise of the DDPG baseline (unused by ``meta``: the teacher explores)."""
+
+    kind: str = "adaptive-param"   # 'normal', 'ou', 'adaptive-param' or 'none'
+    stddev: float = 0.2            # normal/ou sigma; adaptive-param: initial and desired action stddev
+    ou_theta: float = 0.15         # OU mean reversion (baselines)
+    ou_dt: float = 1e-2            # OU time step (baselines)
+    adapt_every: int = 50          # adaptive-param: updates between stddev adaptations
+    adapt_coef: float = 1.01       # adaptive-param: multiplicative adaptation factor
+
+
+@dataclasses.dataclass(frozen=True)
+class MetaConfig:
+    """The teacher and Algorithm 1's schedule (DESIGN.md, paper section 4 and 5.1)."""
+
+    teacher: str = "independent"    # 'independent' (own mean + log-std MLPs) or 'variance' (student mean)
+    hidden: tuple[int, ...] = (64, 64)
+    layer_norm: bool = True         # the paper uses LayerNorm in its policy networks
+    state_dependent_std: bool = True  # variance teacher: log-std MLP (True) or a learned vector (False)
+    init_log_std: float = -0.5      # initial log-std of the teacher (ours; the paper does not say)
+    min_log_std: float = -5.0       # log-std bounds (ours)
+    max_log_std: float = 1.0
+    lr: float = 1e-4                # teacher Adam learning rate (paper)
+    explore_steps: int = 100        # |D0| per cycle
+    eval_steps: int = 200           # |D1| per cycle, per eval env
+    teacher_steps: int = 1          # REINFORCE Adam steps per cycle
+    eval_envs: int = 1              # parallel envs for D1
+    student_from: str = "pi"        # student update starts from pi (paper) or pi'
+    baseline: str = "lookahead"     # R_hat(pi) for the next cycle: R_hat(pi') or a fresh rollout
+    normalize_meta_reward: bool = False  # running mean/std of the meta reward (our addition)
+    visit_samples: int = 2000       # states of teacher/student kept per seed for the visitation figure
+
+
+@dataclasses.dataclass(frozen=True)
+class RunConfig:
+    method: str = "ddpg"           # 'ddpg' (baseline) or 'meta' (Algorithm 1)
+    total_steps: int = 0           # stored env steps per seed (D0, D1, ...; evaluations excluded)
+    rollout_steps: int = 100       # DDPG: noisy-actor env steps per cycle
+    train_steps: int = 50          # DDPG updates per cycle (student; and the look-ahead for meta)
+    eval_every: int = 9000         # env steps between evaluations (= one compiled chunk)
+    eval_episodes: int = 10        # deterministic evaluation episodes, in parallel
+    warmup_steps: int = 0          # uniformly random actions (and no updates) before this many steps
+    buffer_size: int = 0           # replay capacity; 0 = min(1e6, total_steps)
+
+
+@dataclasses.dataclass(frozen=True)
+class Config:
+    env: EnvConfig = EnvConfig()
+    run: RunConfig = RunConfig()
+    ddpg: DDPGConfig = DDPGConfig()
+    noise: NoiseConfig = NoiseConfig()
+    meta: MetaConfig = MetaConfig()
+    preset: str = "paper"
+
+    # Derived values, computed once.
+    @property
+    def steps_per_cycle(self) -> int:
+        if self.run.method == "ddpg":
+            return self.run.rollout_steps
+        m = self.meta
+        fresh = m.eval_steps * m.eval_envs if m.baseline == "fresh" else 0
+        return m.explore_steps + m.eval_steps * m.eval_envs + fresh
+
+    @property
+    def cycles_per_chunk(self) -> int:
+        return self.run.eval_every // self.steps_per_cycle
+
+    @property
+    def num_chunks(self) -> int:
+        return self.run.total_steps // self.run.eval_every
+
+    @property
+    def buffer_capacity(self) -> int:
+        return self.run.buffer_size or min(1_000_000, self.run.total_steps)
+
+    @property
+    def episode_length(self) -> int:
+        return self.env.episode_length or envs.get_spec(self.env.name).episode_length
+
+
+def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "paper",
+                noise: str | None = None, steps: int | None = None, source: str = "gymnasium",
+                teacher: str | None = None, overrides: dict[str, Any] | None = None) -> Config:
+    """A full config from a task, a method and a preset (see the module docstring)."""
+    spec = envs.get_spec(env)
+    if preset not in PRESETS:
+        raise ValueError(f"unknown preset {preset!r}; valid presets: {', '.join(PRESETS)}")
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
+    meta = MetaConfig(explore_steps=spec.explore_steps, eval_steps=spec.eval_steps,
+                      teacher_steps=spec.teacher_steps)
+    if teacher is not None:
+        meta = dataclasses.replace(meta, teacher=teacher)
+    total = envs.default_budget(env) if steps is None else steps
+    if preset == "paper":
+        run = RunConfig(method=method, total_steps=total, rollout_steps=100, train_steps=spec.train_steps)
+        cfg = Config(env=EnvConfig(env, source), run=run, meta=meta, preset=preset)
+    else:
+        ddpg = DDPGConfig(hidden=(256, 256), layer_norm=False, critic_action_layer=0,
+                          actor_lr=3e-4, critic_lr=3e-4, critic_l2=0.0, batch_size=256, tau=0.005,
+                          normalize_obs=False)
+        run = RunConfig(method=method, total_steps=total, rollout_steps=1, train_steps=1, warmup_steps=5000)
+        meta = dataclasses.replace(meta, hidden=(256, 256), layer_norm=False)
+        cfg = Config(env=EnvConfig(env, source), run=run, ddpg=ddpg,
+                     noise=NoiseConfig(kind="normal", stddev=0.1), meta=meta, preset=preset)
+    if noise is not None:
+        cfg = dataclasses.replace(cfg, noise=dataclasses.replace(cfg.noise, kind=noise))
+    if overrides:
+        cfg = override(cfg, overrides)
+    if "run.eval_every" not in (overrides or {}):
+        target = min(spec.eval_every, max(cfg.steps_per_cycle, cfg.run.total_steps // 10))
+        every = default_eval_every(cfg.run.total_steps, cfg.steps_per_cycle, target)
+        cfg = dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, eval_every=every))
+    return cfg
+
+
+def default_eval_every(total_steps: int, cycle: int, target: int) -> int:
+    """The multiple of ``cycle`` dividing ``total_steps`` closest to ``target``.
+
+    With the task defaults this is the task's ``eval_every`` (a multiple of both
+    methods' cycles, so DDPG and Meta are evaluated at the same sample counts).
+    Returns ``target`` unchanged when ``total_steps`` is not a whole number of
+    cycles, so that ``validate`` names the real problem.
+    """
+    if cycle <= 0 or total_steps <= 0 or total_steps % cycle:
+        return target
+    n = total_steps // cycle
+    best = n
+    d = 1
+    while d * d <= n:
+        if n % d == 0:
+            for k in (d, n // d):
+                if abs(k * cycle - target) < abs(best * cycle - target):
+                    best = k
+        d += 1
+    return best * cycle
+
+
+def _field_types(cls) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def _coerce(value: Any, typ: Any, name: str) -> Any:
+    """Converts a CLI string (or a Python value) to the field's declared type."""
+    origin = typing.get_origin(typ)
+    if typ is bool:
+        if isinstance(value, bool):
+            return value
+        s = str(value).lower()
+        if s in ("1", "true", "yes", "on"):
+            return True
+        if s in ("0", "false", "no", "off"):
+            return False
+        raise ValueError(f"{name}: expected a boolean, got {value!r}")
+    if typ in (int, float, str):
+        try:
+            if typ is int and isinstance(value, str):
+                return int(float(value)) if float(value).is_integer() else int(value)
+            return typ(value)
+        except (TypeError, ValueError):
+            raise ValueError(f"{name}: expected {typ.__name__}, got {value!r}") from None
+    if origin is tuple:
+        if isinstance(value, str):
+            value = [v for v in value.replace("(", "").replace(")", "").split(",") if v.strip()]
+        return tuple(_coerce(v, typing.get_args(typ)[0], name) for v in value)
+    raise ValueError(f"{name}: cannot set a field of type {typ}")
+
+
+def override(cfg: Config, overrides: dict[str, Any]) -> Config:
+    """Returns ``cfg`` with dotted fields replaced, e.g. ``{'ddpg.tau': '0.005'}``."""
+    groups = {f.name for f in dataclasses.fields(Config)}
+    for dotted, value in overrides.items():
+        parts = dotted.split(".")
+        if len(parts) == 1 and parts[0] in _field_types(Config) and parts[0] not in groups:
+            cfg = dataclasses.replace(cfg, **{parts[0]: _coerce(value, _field_types(Config)[parts[0]], dotted)})
+            continue
+        if len(parts) != 2 or parts[0] not in groups:
+            raise ValueError(f"unknown config field {dotted!r}; groups: {', '.join(sorted(groups))}")
+        group = getattr(cfg, parts[0])
+        types = _field_types(type(group))
+        if parts[1] not in types:
+            raise ValueError(f"unknown config field {dotted!r}; fields of {parts[0]}: {', '.join(types)}")
+        group = dataclasses.replace(group, **{parts[1]: _coerce(value, types[parts[1]], dotted)})
+        cfg = dataclasses.replace(cfg, **{parts[0]: group})
+    return cfg
+
+
+def _positive(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def validate(cfg: Config) -> Config:
+    """Raises ``ValueError`` with one clear line for a config that cannot run as asked."""
+    envs.get_spec(cfg.env.name)
+    if cfg.env.source not in envs.SOURCES:
+        raise ValueError(f"unknown source {cfg.env.source!r}; valid sources: {', '.join(envs.SOURCES)}")
+    if cfg.run.method not in METHODS:
+        raise ValueError(f"unknown method {cfg.run.method!r}; valid methods: {', '.join(METHODS)}")
+    if cfg.preset not in PRESETS:
+        raise ValueError(f"unknown preset {cfg.preset!r}; valid presets: {', '.join(PRESETS)}")
+    if cfg.noise.kind not in NOISES:
+        raise ValueError(f"unknown noise {cfg.noise.kind!r}; valid noises: {', '.join(NOISES)}")
+    if cfg.meta.teacher not in TEACHERS:
+        raise ValueError(f"unknown teacher {cfg.meta.teacher!r}; valid teachers: {', '.join(TEACHERS)}")
+    if cfg.meta.student_from not in STUDENT_FROM:
+        raise ValueError(f"meta.student_from must be one of {', '.join(STUDENT_FROM)}, got {cfg.meta.student_from!r}")
+    if cfg.meta.baseline not in BASELINES:
+        raise ValueError(f"meta.baseline must be one of {', '.join(BASELINES)}, got {cfg.meta.baseline!r}")
+    if cfg.env.episode_length < 0:
+        raise ValueError(f"env.episode_length must be >= 0 (0 = the task's), got {cfg.env.episode_length}")
+    for name in ("total_steps", "rollout_steps", "train_steps", "eval_every", "eval_episodes"):
+        _positive(f"run.{name}", getattr(cfg.run, name))
+    if cfg.run.warmup_steps < 0 or cfg.run.buffer_size < 0:
+        raise ValueError("run.warmup_steps and run.buffer_size must be >= 0")
+    for name in ("actor_lr", "critic_lr", "batch_size", "tau", "gamma", "obs_clip"):
+        _positive(f"ddpg.{name}", getattr(cfg.ddpg, name))
+    if not cfg.ddpg.hidden or min(cfg.ddpg.hidden) <= 0:
+        raise ValueError(f"ddpg.hidden must be a non-empty tuple of positive widths, got {cfg.ddpg.hidden}")
+    if not 0 <= cfg.ddpg.critic_action_layer < len(cfg.ddpg.hidden):
+        raise ValueError(f"ddpg.critic_action_layer must be in [0, {len(cfg.ddpg.hidden)}), got {cfg.ddpg.critic_action_layer}")
+    if cfg.ddpg.tau > 1 or cfg.ddpg.gamma > 1:
+        raise ValueError("ddpg.tau and ddpg.gamma must be <= 1")
+    if cfg.ddpg.critic_l2 < 0 or not math.isfinite(cfg.ddpg.critic_l2):
+        raise ValueError(f"ddpg.critic_l2 must be >= 0, got {cfg.ddpg.critic_l2}")
+    if cfg.noise.kind != "none":
+        _positive("noise.stddev", cfg.noise.stddev)
+    _positive("noise.adapt_every", cfg.noise.adapt_every)
+    if cfg.run.method == "meta":
+        for name in ("lr", "explore_steps", "eval_steps", "teacher_steps", "eval_envs", "visit_samples"):
+            _positive(f"meta.{name}", getattr(cfg.meta, name))
+        if not cfg.meta.hidden or min(cfg.meta.hidden) <= 0:
+            raise ValueError(f"meta.hidden must be a non-empty tuple of positive widths, got {cfg.meta.hidden}")
+        if not cfg.meta.min_log_std < cfg.meta.init_log_std < cfg.meta.max_log_std:
+            raise ValueError("meta log-std bounds must satisfy min_log_std < init_log_std < max_log_std")
+    cycle = cfg.steps_per_cycle
+    if cfg.run.total_steps % cycle:
+        raise ValueError(f"run.total_steps={cfg.run.total_steps} is not a multiple of the {cycle} env steps "
+                         f"one {cfg.run.method} cycle stores")
+    if cfg.run.eval_every % cycle:
+        raise ValueError(f"run.eval_every={cfg.run.eval_every} is not a multiple of the {cycle} env steps "
+                         f"one {cfg.run.method} cycle stores")
+    if cfg.run.total_steps % cfg.run.eval_every:
+        raise ValueError(f"run.total_steps={cfg.run.total_steps} is not a multiple of run.eval_every="
+                         f"{cfg.run.eval_every} (each evaluation ends one compiled chunk); "
+                         f"e.g. use --steps={max(1, cfg.run.total_steps // cfg.run.eval_every) * cfg.run.eval_every}")
+    if cfg.buffer_capacity < cycle:
+        raise ValueError(f"replay capacity {cfg.buffer_capacity} is smaller than one cycle ({cycle} steps)")
+    return cfg

@@ -1,0 +1,91 @@
+"""Exploration noise of the DDPG baseline: Gaussian, Ornstein-Uhlenbeck, adaptive parameter noise.
+
+All three as in the 2018 OpenAI-baselines DDPG (``baselines/ddpg/noise.py``,
+``ddpg_learner.py``), which is the paper's comparison:
+
+* ``normal``: a = clip(mu(s) + N(0, sigma^2)).
+* ``ou``: x <- x + theta (0 - x) dt + sigma sqrt(dt) N(0, 1), reset to 0 at every
+  episode start; a = clip(mu(s) + x).
+* ``adaptive-param`` (Plappert et al., 2018): the actor's non-LayerNorm
+  parameters are perturbed with N(0, sigma^2) at every episode start; every
+  ``adapt_every`` updates a separately perturbed copy is compared with the
+  actor on a replay minibatch, and sigma is divided by ``adapt_coef`` if the
+  action distance sqrt(mean((mu - mu~)^2)) exceeds the desired stddev, and
+  multiplied by it otherwise.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+from flax import struct
+
+from metapg_jax.config import NoiseConfig
+from metapg_jax.networks import is_layer_norm_path
+from metapg_jax.types import Params
+
+
+@struct.dataclass
+class NoiseState:
+    ou: jax.Array              # (action_size,) OU process value
+    stddev: jax.Array          # current parameter-noise stddev (adaptive-param)
+    perturbed: Params          # perturbed actor parameters (adaptive-param; else unused copy)
+    distance: jax.Array        # last measured action distance (adaptive-param)
+
+
+def perturb(params: Params, key: jax.Array, stddev: jax.Array) -> Params:
+    """Adds N(0, stddev^2) to every parameter outside LayerNorm modules."""
+    leaves, treedef = jax.tree_util.tree_flatten_with_path(params)
+    keys = jax.random.split(key, len(leaves))
+    out = [
+        x if is_layer_norm_path(path) else x + stddev * jax.random.normal(k, x.shape, x.dtype)
+        for (path, x), k in zip(leaves, keys)
+    ]
+    return jax.tree_util.tree_unflatten(treedef, out)
+
+
+def init(cfg: NoiseConfig, actor_params: Params, action_size: int) -> NoiseState:
+    return NoiseState(
+        ou=jnp.zeros((action_size,), jnp.float32),
+        stddev=jnp.asarray(cfg.stddev, jnp.float32),
+        perturbed=actor_params,
+        distance=jnp.zeros((), jnp.float32),
+    )
+
+
+def episode_start(cfg: NoiseConfig, state: NoiseState, actor_params: Params, key: jax.Array) -> NoiseState:
+    """What baselines' ``agent.reset()`` does at the start of every episode."""
+    if cfg.kind == "ou":
+        return state.replace(ou=jnp.zeros_like(state.ou))
+    if cfg.kind == "adaptive-param":
+        return state.replace(perturbed=perturb(actor_params, key, state.stddev))
+    return state
+
+
+def act(cfg: NoiseConfig, state: NoiseState, actor_apply: Callable, actor_params: Params,
+        obs: jax.Array, key: jax.Array) -> tuple[jax.Array, NoiseState]:
+    """Noisy action in [-1, 1] for one (normalised) observation."""
+    if cfg.kind == "adaptive-param":
+        return jnp.clip(actor_apply(state.perturbed, obs), -1.0, 1.0), state
+    mu = actor_apply(actor_params, obs)
+    if cfg.kind == "normal":
+        return jnp.clip(mu + cfg.stddev * jax.random.normal(key, mu.shape), -1.0, 1.0), state
+    if cfg.kind == "ou":
+        x = state.ou + cfg.ou_theta * (0.0 - state.ou) * cfg.ou_dt + cfg.stddev * jnp.sqrt(
+            cfg.ou_dt) * jax.random.normal(key, mu.shape)
+        return jnp.clip(mu + x, -1.0, 1.0), state.replace(ou=x)
+    return jnp.clip(mu, -1.0, 1.0), state
+
+
+def adapt(cfg: NoiseConfig, state: NoiseState, actor_apply: Callable, actor_params: Params,
+          obs_batch: jax.Array, key: jax.Array) -> NoiseState:
+    """Adaptive parameter noise: one stddev adaptation on a batch of normalised observations."""
+    if cfg.kind != "adaptive-param":
+        return state
+    probe = perturb(actor_params, key, state.stddev)
+    diff = actor_apply(actor_params, obs_batch) - actor_apply(probe, obs_batch)
+    distance = jnp.sqrt(jnp.mean(jnp.square(diff)))
+    stddev = jnp.where(distance > cfg.stddev, state.stddev / cfg.adapt_coef, state.stddev * cfg.adapt_coef)
+    return state.replace(stddev=stddev, distance=distance)

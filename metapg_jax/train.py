@@ -1,0 +1,225 @@
+"""``make_train(config, env)``: the whole training run as pure, jittable functions.
+
+Returns a ``Trainer`` with
+
+* ``init(key) -> TrainState`` for one seed;
+* ``train_chunk(state) -> (state, metrics)``: a ``lax.scan`` over
+  ``cycles_per_chunk`` cycles followed by one evaluation;
+* ``train(key) -> (state, metrics)``: ``init`` and a scan over all chunks, one
+  program for the whole run.
+
+Both paths give the same numbers for the same key. Seeds are a ``jax.vmap``
+over keys of these functions; the host (``experiments.run``) jits the vmapped
+``train_chunk`` once and calls it once per evaluation interval.
+
+A *cycle* is the DDPG baseline's (``rollout_steps`` noisy-actor steps stored,
+then ``train_steps`` updates) or one meta-iteration of Algorithm 1
+(``metapg_jax.meta``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from brax.envs.base import Env, State
+from flax import struct
+
+from metapg_jax import noise as noise_lib
+from metapg_jax import normalizer as norm_lib
+from metapg_jax import replay
+from metapg_jax.config import Config, validate
+from metapg_jax.ddpg import DDPG, StudentState
+from metapg_jax.evaluate import evaluate
+from metapg_jax.rollout import completed_episode_mean, rollout
+from metapg_jax.types import Transition
+
+
+@struct.dataclass
+class TrainState:
+    student: StudentState
+    normalizer: norm_lib.NormalizerState
+    buffer: replay.ReplayState
+    env_state: State                 # the exploring env (episodes continue across cycles)
+    explorer: Any                    # NoiseState (ddpg) or TeacherState (meta)
+    key: jax.Array
+    env_steps: jax.Array             # int32: stored env steps so far (the sample budget)
+    updates: jax.Array               # int32: student updates so far
+    cycles: jax.Array                # int32
+
+
+def seed_keys(seed: int, num_seeds: int) -> jax.Array:
+    """One key per seed; seed i's key does not depend on how many seeds run."""
+    base = jax.random.PRNGKey(seed)
+    return jnp.stack([jax.random.fold_in(base, i) for i in range(num_seeds)])
+
+
+def flatten_time(tree):
+    """Merges the two leading axes (e.g. time x envs) of every leaf."""
+    return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), tree)
+
+
+def train_updates(ddpg: DDPG, student: StudentState, normalizer, sample, key: jax.Array, num: int,
+                  adapt=None, adapt_carry=None, updates0=None):
+    """``num`` DDPG updates with minibatches from ``sample(key)``; returns the mean metrics.
+
+    ``adapt(carry, student, batch, key)`` (optional) runs before an update whenever the
+    global update count is a multiple of the adaptation interval (parameter noise).
+    """
+
+    def step(c, k):
+        st, ac, i = c
+        k_batch, k_adapt = jax.random.split(k)
+        batch = sample(k_batch)
+        if adapt is not None:
+            ac = adapt(ac, st, batch, k_adapt, i)
+        st, metrics = ddpg.update(st, normalizer, batch)
+        return (st, ac, i + 1), metrics
+
+    i0 = jnp.zeros((), jnp.int32) if updates0 is None else updates0
+    (student, adapt_carry, _), metrics = jax.lax.scan(step, (student, adapt_carry, i0), jax.random.split(key, num))
+    return student, adapt_carry, jax.tree.map(jnp.mean, metrics)
+
+
+@dataclasses.dataclass(frozen=True)
+class Trainer:
+    config: Config
+    env: Env
+    ddpg: DDPG
+
+    # ------------------------------------------------------------------ init
+    def init(self, key: jax.Array) -> TrainState:
+        cfg = self.config
+        k_student, k_env, k_explorer, key = jax.random.split(key, 4)
+        student = self.ddpg.init(k_student)
+        env_state = self.env.reset(k_env)
+        state = TrainState(
+            student=student,
+            normalizer=norm_lib.init(self.ddpg.obs_size),
+            buffer=replay.init(cfg.buffer_capacity, self.ddpg.obs_size, self.ddpg.action_size),
+            env_state=env_state,
+            explorer=None,
+            key=key,
+            env_steps=jnp.zeros((), jnp.int32),
+            updates=jnp.zeros((), jnp.int32),
+            cycles=jnp.zeros((), jnp.int32),
+        )
+        if cfg.run.method == "meta":
+            from metapg_jax import meta
+
+            return meta.init_state(self, state, k_explorer)
+        return state.replace(explorer=noise_lib.init(cfg.noise, student.actor, self.ddpg.action_size))
+
+    # ------------------------------------------------------------------ cycles
+    def store(self, state: TrainState, transitions: Transition) -> TrainState:
+        """Adds a flat batch of transitions to the buffer and the normaliser; counts them."""
+        n = transitions.reward.shape[0]
+        return state.replace(
+            buffer=replay.add(state.buffer, transitions),
+            normalizer=norm_lib.update(state.normalizer, transitions.obs),
+            env_steps=state.env_steps + n,
+        )
+
+    def can_update(self, state: TrainState) -> jax.Array:
+        """Updates start once the warm-up is over and the buffer holds a minibatch."""
+        return jnp.logical_and(state.env_steps >= self.config.run.warmup_steps,
+                               state.buffer.size >= self.config.ddpg.batch_size)
+
+    def random_action(self, key: jax.Array) -> jax.Array:
+        return jax.random.uniform(key, (self.ddpg.action_size,), jnp.float32, -1.0, 1.0)
+
+    def ddpg_cycle(self, state: TrainState) -> tuple[TrainState, dict]:
+        """The baseline's cycle: ``rollout_steps`` noisy-actor steps, then ``train_steps`` updates."""
+        cfg, ddpg = self.config, self.ddpg
+        key, k_roll, k_train = jax.random.split(state.key, 3)
+        warm = state.env_steps < cfg.run.warmup_steps
+        actor, normalizer = state.student.actor, state.normalizer
+
+        def policy(carry, obs, first, k):
+            k_reset, k_act, k_rand = jax.random.split(k, 3)
+            carry = jax.lax.cond(first, lambda: noise_lib.episode_start(cfg.noise, carry, actor, k_reset),
+                                 lambda: carry)
+            action, carry = noise_lib.act(cfg.noise, carry, ddpg.actor_apply, actor,
+                                          ddpg.normalize(normalizer, obs), k_act)
+            return jnp.where(warm, self.random_action(k_rand), action), carry, None
+
+        env_state, explorer, transitions, stats, _ = rollout(
+            self.env, policy, state.env_state, state.explorer, k_roll, cfg.run.rollout_steps)
+        state = self.store(state.replace(env_state=env_state, explorer=explorer, key=key), transitions)
+
+        def adapt(noise_state, student, batch, k, i):
+            due = (i % cfg.noise.adapt_every) == 0
+            obs = ddpg.normalize(state.normalizer, batch.obs)
+            return jax.lax.cond(
+                due, lambda: noise_lib.adapt(cfg.noise, noise_state, ddpg.actor_apply, student.actor, obs, k),
+                lambda: noise_state)
+
+        state, train_metrics = self.student_updates(
+            state, k_train, cfg.run.train_steps,
+            adapt=adapt if cfg.noise.kind == "adaptive-param" else None)
+        ret_mean, n_eps = completed_episode_mean(stats)
+        metrics = {**train_metrics, "train_return": ret_mean, "train_episodes": n_eps,
+                   "param_noise_stddev": state.explorer.stddev, "param_noise_distance": state.explorer.distance}
+        return state, metrics
+
+    def student_updates(self, state: TrainState, key: jax.Array, num: int, adapt=None):
+        """``num`` updates of the student on replay minibatches (skipped during warm-up)."""
+        ddpg, cfg = self.ddpg, self.config
+
+        def run(_):
+            sample = lambda k: replay.sample(state.buffer, k, cfg.ddpg.batch_size)
+            student, explorer, metrics = train_updates(
+                ddpg, state.student, state.normalizer, sample, key, num,
+                adapt=adapt, adapt_carry=state.explorer, updates0=state.updates)
+            return student, explorer, state.updates + num, metrics
+
+        def skip(_):
+            nan = jnp.full((), jnp.nan, jnp.float32)
+            return state.student, state.explorer, state.updates, {
+                "critic_loss": nan, "actor_loss": nan, "q_mean": nan, "td_loss": nan}
+
+        student, explorer, updates, metrics = jax.lax.cond(self.can_update(state), run, skip, None)
+        return state.replace(student=student, explorer=explorer, updates=updates), metrics
+
+    def cycle(self, state: TrainState) -> tuple[TrainState, dict]:
+        if self.config.run.method == "meta":
+            from metapg_jax import meta
+
+            state, metrics = meta.meta_cycle(self, state)
+        else:
+            state, metrics = self.ddpg_cycle(state)
+        return state.replace(cycles=state.cycles + 1), metrics
+
+    # ------------------------------------------------------------------ chunks
+    def evaluate(self, state: TrainState, key: jax.Array) -> tuple[jax.Array, jax.Array]:
+        act = self.ddpg.deterministic_policy(state.student.actor, state.normalizer)
+        return evaluate(self.env, act, key, self.config.run.eval_episodes, self.config.episode_length)
+
+    def train_chunk(self, state: TrainState) -> tuple[TrainState, dict]:
+        """``cycles_per_chunk`` cycles in one scan, then one evaluation."""
+        state, cycle_metrics = jax.lax.scan(lambda s, _: self.cycle(s), state, None,
+                                            length=self.config.cycles_per_chunk)
+        key, k_eval = jax.random.split(state.key)
+        state = state.replace(key=key)
+        eval_return, eval_length = self.evaluate(state, k_eval)
+        metrics = {"env_steps": state.env_steps, "updates": state.updates,
+                   "eval_return": eval_return, "eval_length": eval_length, "cycle": cycle_metrics}
+        return state, metrics
+
+    def train(self, key: jax.Array) -> tuple[TrainState, dict]:
+        """The whole run as one scan over chunks (same numbers as the chunked host loop)."""
+        state = self.init(key)
+        return jax.lax.scan(lambda s, _: self.train_chunk(s), state, None, length=self.config.num_chunks)
+
+
+def make_train(config: Config, env: Env | None = None) -> Trainer:
+    """Validates ``config`` and builds the trainer (``env`` defaults to ``envs.make`` of the config)."""
+    import envs
+
+    validate(config)
+    if env is None:
+        env = envs.make(config.env.name, source=config.env.source, episode_length=config.episode_length)
+    ddpg = DDPG(config.ddpg, int(env.observation_size), int(env.action_size))
+    return Trainer(config, env, ddpg)
