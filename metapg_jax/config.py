@@ -83,6 +83,7 @@ class MetaConfig:
     explore_steps: int = 100        # |D0| per cycle
     eval_steps: int = 200           # |D1| per cycle, per eval env
     teacher_steps: int = 1          # REINFORCE Adam steps per cycle
+    lookahead_steps: int = 0        # DDPG updates of the look-ahead copy on D0; 0 = run.train_steps
     eval_envs: int = 1              # parallel envs for D1
     student_from: str = "pi"        # student update starts from pi (paper) or pi'
     baseline: str = "lookahead"     # R_hat(pi) for the next cycle: R_hat(pi') or a fresh rollout
@@ -160,6 +161,12 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
                           normalize_obs=False)
         run = RunConfig(method=method, total_steps=total, rollout_steps=1, train_steps=1, warmup_steps=5000)
         meta = dataclasses.replace(meta, hidden=(256, 256), layer_norm=False)
+        if method == "meta":
+            # One student update per stored step, one look-ahead update per D0 step; no random
+            # warm-up (the teacher is the exploration from the first step).
+            cycle = meta.explore_steps + meta.eval_steps * meta.eval_envs
+            run = dataclasses.replace(run, train_steps=cycle, warmup_steps=0)
+            meta = dataclasses.replace(meta, lookahead_steps=meta.explore_steps)
         cfg = Config(env=EnvConfig(env, source), run=run, ddpg=ddpg,
                      noise=NoiseConfig(kind="normal", stddev=0.1), meta=meta, preset=preset)
     if noise is not None:
@@ -270,8 +277,8 @@ def validate(cfg: Config) -> Config:
         raise ValueError(f"env.episode_length must be >= 0 (0 = the task's), got {cfg.env.episode_length}")
     for name in ("total_steps", "rollout_steps", "train_steps", "eval_every", "eval_episodes"):
         _positive(f"run.{name}", getattr(cfg.run, name))
-    if cfg.run.warmup_steps < 0 or cfg.run.buffer_size < 0:
-        raise ValueError("run.warmup_steps and run.buffer_size must be >= 0")
+    if cfg.run.warmup_steps < 0 or cfg.run.buffer_size < 0 or cfg.meta.lookahead_steps < 0:
+        raise ValueError("run.warmup_steps, run.buffer_size and meta.lookahead_steps must be >= 0")
     for name in ("actor_lr", "critic_lr", "batch_size", "tau", "gamma", "obs_clip"):
         _positive(f"ddpg.{name}", getattr(cfg.ddpg, name))
     if not cfg.ddpg.hidden or min(cfg.ddpg.hidden) <= 0:
@@ -285,8 +292,9 @@ def validate(cfg: Config) -> Config:
     if cfg.noise.kind != "none":
         _positive("noise.stddev", cfg.noise.stddev)
     _positive("noise.adapt_every", cfg.noise.adapt_every)
+    _positive("meta.visit_samples", cfg.meta.visit_samples)
     if cfg.run.method == "meta":
-        for name in ("lr", "explore_steps", "eval_steps", "teacher_steps", "eval_envs", "visit_samples"):
+        for name in ("lr", "explore_steps", "eval_steps", "teacher_steps", "eval_envs"):
             _positive(f"meta.{name}", getattr(cfg.meta, name))
         if not cfg.meta.hidden or min(cfg.meta.hidden) <= 0:
             raise ValueError(f"meta.hidden must be a non-empty tuple of positive widths, got {cfg.meta.hidden}")

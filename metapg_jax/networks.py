@@ -69,39 +69,29 @@ class Critic(nn.Module):
         return x[..., 0]
 
 
-class GaussianMLP(nn.Module):
-    """Mean and log-std MLPs of a diagonal Gaussian policy (the paper's teacher, section 5.1).
+class MLP(nn.Module):
+    """A plain MLP head (no output squashing): the teacher's mean and log-std networks.
 
-    Two separate 64-64 MLPs, as the paper: one for the mean, one for the log
-    standard deviation. The mean is not squashed; the sample is clipped to the
-    action bounds only for the environment. Log-std is bounded to
-    [min_log_std, max_log_std] with a tanh-free soft clip (see ``teacher.py``).
+    Same hidden layers as the student (Dense -> LayerNorm -> ReLU) and the same
+    small uniform last layer; ``bias_init`` sets the initial output (used to
+    start the teacher's log-std at ``init_log_std``).
     """
 
-    action_size: int
+    out_size: int
     hidden: Sequence[int] = (64, 64)
     layer_norm: bool = True
     final_init: float = 3e-3
-    init_log_std: float = 0.0
+    bias_init: float = 0.0
 
     @nn.compact
-    def __call__(self, obs: jax.Array) -> tuple[jax.Array, jax.Array]:
-        def trunk(x, prefix):
-            for i, width in enumerate(self.hidden):
-                x = nn.Dense(width, kernel_init=nn.initializers.glorot_uniform(), name=f"{prefix}_dense_{i}")(x)
-                if self.layer_norm:
-                    x = nn.LayerNorm(name=f"{prefix}_ln_{i}")(x)
-                x = nn.relu(x)
-            return x
-
-        mean = nn.Dense(self.action_size, kernel_init=_uniform(self.final_init), name="mean_out")(trunk(obs, "mean"))
-        log_std = nn.Dense(
-            self.action_size,
-            kernel_init=_uniform(self.final_init),
-            bias_init=nn.initializers.constant(self.init_log_std),
-            name="log_std_out",
-        )(trunk(obs, "log_std"))
-        return mean, log_std
+    def __call__(self, x: jax.Array) -> jax.Array:
+        for i, width in enumerate(self.hidden):
+            x = nn.Dense(width, kernel_init=nn.initializers.glorot_uniform(), name=f"dense_{i}")(x)
+            if self.layer_norm:
+                x = nn.LayerNorm(name=f"ln_{i}")(x)
+            x = nn.relu(x)
+        return nn.Dense(self.out_size, kernel_init=_uniform(self.final_init),
+                        bias_init=nn.initializers.constant(self.bias_init), name="out")(x)
 
 
 def is_layer_norm_path(path) -> bool:

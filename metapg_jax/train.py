@@ -30,6 +30,7 @@ from flax import struct
 from metapg_jax import noise as noise_lib
 from metapg_jax import normalizer as norm_lib
 from metapg_jax import replay
+from metapg_jax import visits as visits_lib
 from metapg_jax.config import Config, validate
 from metapg_jax.ddpg import DDPG, StudentState
 from metapg_jax.evaluate import evaluate
@@ -44,6 +45,7 @@ class TrainState:
     buffer: replay.ReplayState
     env_state: State                 # the exploring env (episodes continue across cycles)
     explorer: Any                    # NoiseState (ddpg) or TeacherState (meta)
+    visits: visits_lib.VisitState    # bounded sample of visited states (state-visitation figure)
     key: jax.Array
     env_steps: jax.Array             # int32: stored env steps so far (the sample budget)
     updates: jax.Array               # int32: student updates so far
@@ -101,6 +103,7 @@ class Trainer:
             buffer=replay.init(cfg.buffer_capacity, self.ddpg.obs_size, self.ddpg.action_size),
             env_state=env_state,
             explorer=None,
+            visits=visits_lib.init(cfg.meta.visit_samples, self.ddpg.obs_size),
             key=key,
             env_steps=jnp.zeros((), jnp.int32),
             updates=jnp.zeros((), jnp.int32),
@@ -147,7 +150,9 @@ class Trainer:
 
         env_state, explorer, transitions, stats, _ = rollout(
             self.env, policy, state.env_state, state.explorer, k_roll, cfg.run.rollout_steps)
-        state = self.store(state.replace(env_state=env_state, explorer=explorer, key=key), transitions)
+        state = self.store(state.replace(env_state=env_state, explorer=explorer, key=key,
+                                         visits=visits_lib.record(state.visits, explore_obs=transitions.obs)),
+                           transitions)
 
         def adapt(noise_state, student, batch, k, i):
             due = (i % cfg.noise.adapt_every) == 0

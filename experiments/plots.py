@@ -1,0 +1,61 @@
+"""Plots drawn from stored results (host side, matplotlib Agg)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from metapg_jax.reporting import plot_learning_curve  # noqa: F401  (re-exported for scripts)
+
+
+def _per_seed(rows: list[dict], key: str) -> tuple[np.ndarray, np.ndarray]:
+    seeds = sorted({r["seed"] for r in rows})
+    by = {s: sorted((r for r in rows if r["seed"] == s), key=lambda r: r["cycle"]) for s in seeds}
+    n = min(len(v) for v in by.values())
+    cycles = np.array([r["cycle"] for r in by[seeds[0]][:n]])
+    vals = np.array([[np.nan if r.get(key) is None else r[key] for r in by[s][:n]] for s in seeds], float)
+    return cycles, vals
+
+
+def _smooth(v: np.ndarray, width: int) -> np.ndarray:
+    """Moving average along the last axis, NaN-aware."""
+    if width <= 1:
+        return v
+    kernel = np.ones(width)
+    num = np.apply_along_axis(lambda x: np.convolve(np.nan_to_num(x), kernel, "same"), -1, v)
+    den = np.apply_along_axis(lambda x: np.convolve(np.isfinite(x).astype(float), kernel, "same"), -1, v)
+    return num / np.maximum(den, 1)
+
+
+def plot_teacher(rows: list[dict], path: str, title: str) -> None:
+    """The teacher's curves per cycle: meta reward, log-std, R_hat(pi') vs R_hat(pi), teacher-student distance.
+
+    Mean over seeds (thick) with ± std band, smoothed over ~1% of the run.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cycles, _ = _per_seed(rows, "meta_reward")
+    width = max(1, len(cycles) // 100)
+    panels = [("meta_reward", "meta reward R_hat(pi') - R_hat(pi)"), ("teacher_log_std", "teacher mean log-std"),
+              (("r_hat_lookahead", "r_hat_pi"), "R_hat(pi') and R_hat(pi)"),
+              ("teacher_student_distance", "RMS teacher - student action on D0")]
+    fig, axes = plt.subplots(2, 2, figsize=(10, 6.5), dpi=110)
+    for ax, (key, label) in zip(axes.ravel(), panels):
+        keys = key if isinstance(key, tuple) else (key,)
+        for k, color in zip(keys, ("tab:orange", "tab:gray")):
+            _, v = _per_seed(rows, k)
+            v = _smooth(v, width)
+            mean, std = np.nanmean(v, 0), np.nanstd(v, 0)
+            ax.plot(cycles, mean, color=color, lw=1.5, label=k)
+            ax.fill_between(cycles, mean - std, mean + std, color=color, alpha=0.2)
+        ax.set_title(label, fontsize=9)
+        ax.set_xlabel("cycle")
+        ax.grid(alpha=0.3)
+        if len(keys) > 1:
+            ax.legend(fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)

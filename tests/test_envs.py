@@ -1,0 +1,134 @@
+"""Registry, wrappers (time limit, auto-reset, flags, statistics) and the JAX Pendulum."""
+
+import gymnasium
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from brax.envs.base import Env, State
+
+import envs
+from envs.pendulum import Pendulum
+from envs.wrappers import AutoResetWrapper, EpisodeWrapper
+
+
+def test_unknown_task_lists_valid_names():
+    with pytest.raises(ValueError, match="valid tasks: pendulum, inverted_pendulum"):
+        envs.make("cartpole")
+    with pytest.raises(ValueError, match="valid sources"):
+        envs.make("hopper", source="dm_control")
+
+
+def test_pendulum_step_matches_hand_computation():
+    env = Pendulum()
+    s = env.state_from_q(0.5, -0.3)
+    s2 = env.step(s, jnp.array([0.25]))
+    u = 0.25 * 2.0
+    cost = 0.5**2 + 0.1 * 0.3**2 + 0.001 * u**2
+    thdot = -0.3 + (3 * 10.0 / 2 * np.sin(0.5) + 3.0 * u) * 0.05
+    th = 0.5 + thdot * 0.05
+    np.testing.assert_allclose(s2.reward, -cost, rtol=1e-6)
+    np.testing.assert_allclose(s2.obs, [np.cos(th), np.sin(th), thdot], rtol=1e-6)
+    # Angle normalisation in the cost and the speed clip.
+    s3 = env.step(env.state_from_q(5 * np.pi / 2, 7.9), jnp.array([1.0]))
+    np.testing.assert_allclose(s3.reward, -((np.pi / 2) ** 2 + 0.1 * 7.9**2 + 0.001 * 4.0), rtol=1e-5)
+    assert float(s3.obs[2]) == pytest.approx(8.0)
+
+
+def test_pendulum_matches_gymnasium_over_an_episode_prefix():
+    genv = gymnasium.make("Pendulum-v1").unwrapped
+    genv.reset(seed=3)
+    th, thdot = genv.state
+    env = Pendulum()
+    s = env.state_from_q(th, thdot)
+    rng = np.random.default_rng(0)
+    step = jax.jit(env.step)
+    for _ in range(30):
+        a = rng.uniform(-1, 1, size=(1,)).astype(np.float32)
+        gobs, grew, term, trunc, _ = genv.step(a * 2.0)
+        s = step(s, jnp.asarray(a))
+        np.testing.assert_allclose(s.obs, gobs, rtol=1e-4, atol=1e-4)
+        np.testing.assert_allclose(s.reward, grew, rtol=1e-4, atol=1e-4)
+        assert not term
+
+
+def test_wrapped_pendulum_shapes_and_finiteness_under_jit_vmap():
+    env = envs.make("pendulum")
+    keys = jax.random.split(jax.random.PRNGKey(0), 5)
+    s = jax.jit(jax.vmap(env.reset))(keys)
+    step = jax.jit(jax.vmap(env.step))
+    for _ in range(10):
+        s = step(s, jnp.zeros((5, 1)))
+    assert s.obs.shape == (5, 3) and s.obs.dtype == jnp.float32
+    assert s.reward.shape == (5,)
+    assert np.isfinite(np.asarray(s.obs)).all()
+    # Different keys, different initial states.
+    assert len({tuple(np.round(o, 5)) for o in np.asarray(jax.vmap(env.reset)(keys).obs)}) == 5
+
+
+class _Terminating(Env):
+    """A 1-D toy env: x += a; terminates when x > 1. Used to check the flags."""
+
+    def reset(self, rng):
+        z = jnp.zeros((), jnp.float32)
+        return State(pipeline_state=jnp.zeros(1), obs=jnp.zeros(1) + jax.random.uniform(rng, (1,)) * 0.01,
+                     reward=z, done=z)
+
+    def step(self, state, action):
+        x = state.obs + action
+        return state.replace(obs=x, reward=jnp.sum(x), done=(x[0] > 1.0).astype(jnp.float32))
+
+    @property
+    def observation_size(self):
+        return 1
+
+    @property
+    def action_size(self):
+        return 1
+
+    @property
+    def backend(self):
+        return "jax"
+
+
+def test_time_limit_truncates_and_autoreset_keeps_final_observation():
+    env = AutoResetWrapper(EpisodeWrapper(Pendulum(), episode_length=3))
+    s = env.reset(jax.random.PRNGKey(1))
+    raw = Pendulum()
+    q = s.pipeline_state
+    for t in range(3):
+        q_state = raw.step(State(q, raw._obs(q), jnp.zeros(()), jnp.zeros(())), jnp.array([0.1]))
+        q = q_state.pipeline_state
+        s = env.step(s, jnp.array([0.1]))
+    assert float(s.info["truncated"]) == 1.0 and float(s.info["terminated"]) == 0.0
+    assert float(s.done) == 1.0
+    # next_obs is the true final observation; obs is already the new episode's first.
+    np.testing.assert_allclose(s.info["next_obs"], q_state.obs, rtol=1e-6)
+    assert not np.allclose(s.obs, s.info["next_obs"])
+    assert int(s.info["steps"]) == 0 and int(s.info["episode_length"]) == 3
+    assert float(s.info["running_return"]) == 0.0 and float(s.info["episode_return"]) != 0.0
+
+
+def test_termination_is_not_truncation():
+    env = AutoResetWrapper(EpisodeWrapper(_Terminating(), episode_length=100))
+    s = env.reset(jax.random.PRNGKey(0))
+    flags = []
+    for _ in range(3):
+        s = env.step(s, jnp.array([0.6]))
+        flags.append((float(s.info["terminated"]), float(s.info["truncated"]), float(s.done)))
+    assert flags[0] == (0.0, 0.0, 0.0)
+    assert flags[1] == (1.0, 0.0, 1.0)   # x = 1.2 > 1: terminated, not truncated
+    assert float(s.obs[0]) < 1.0          # auto-reset happened after the termination
+    # Termination on the time-limit step counts as termination only.
+    env2 = AutoResetWrapper(EpisodeWrapper(_Terminating(), episode_length=2))
+    s = env2.step(env2.step(env2.reset(jax.random.PRNGKey(0)), jnp.array([0.6])), jnp.array([0.6]))
+    assert (float(s.info["terminated"]), float(s.info["truncated"])) == (1.0, 0.0)
+
+
+def test_default_budgets_are_reachable_by_both_methods():
+    for name, spec in envs.TASKS.items():
+        budget = envs.default_budget(name)
+        assert budget % spec.eval_every == 0
+        assert spec.eval_every % 100 == 0
+        assert spec.eval_every % (spec.explore_steps + spec.eval_steps) == 0
+        assert budget >= 0.99 * spec.paper_budget
