@@ -87,7 +87,7 @@ class Teacher:
         if self.cfg.teacher == "independent":
             params["mean"] = self._mean_net().init(k_mean, obs)
         zero = jnp.zeros((), jnp.float32)
-        return TeacherState(params=params, opt=self.optimizer.init(params), r_hat=jnp.full((), jnp.nan),
+        return TeacherState(params=params, opt=self.optimizer.init(params), r_hat=jnp.full((), jnp.nan, jnp.float32),
                             reward_count=zero, reward_mean=zero, reward_m2=zero)
 
     def distribution(self, params: Params, student_actor: Params, obs_normalized: jax.Array):

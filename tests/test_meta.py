@@ -1,0 +1,147 @@
+"""The teacher and Algorithm 1: log-prob gradients, REINFORCE direction, look-ahead isolation, accounting."""
+
+import dataclasses
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from metapg_jax import meta
+from metapg_jax.config import DDPGConfig, MetaConfig
+from metapg_jax.ddpg import DDPG
+from metapg_jax.teacher import Teacher
+from metapg_jax.train import make_train
+from tests.helpers import tiny_config
+
+DESIGNS = [("independent", True), ("variance", True), ("variance", False)]
+
+
+def _teacher(design, state_dependent, **kw):
+    ddpg = DDPG(DDPGConfig(hidden=(8, 8)), obs_size=3, action_size=2)
+    cfg = MetaConfig(teacher=design, state_dependent_std=state_dependent, hidden=(8, 8), **kw)
+    return Teacher(cfg, ddpg), ddpg.init(jax.random.PRNGKey(5)).actor
+
+
+@pytest.mark.parametrize("design,state_dependent", DESIGNS)
+def test_log_prob_gradient_matches_finite_differences(design, state_dependent):
+    teacher, actor = _teacher(design, state_dependent)
+    params = teacher.init(jax.random.PRNGKey(0)).params
+    key = jax.random.PRNGKey(1)
+    obs = jax.random.normal(key, (6, 3))
+    _, raw = teacher.sample(params, actor, obs, key)
+    with jax.enable_x64(True):
+        p64 = jax.tree.map(lambda x: jnp.asarray(x, jnp.float64), params)
+        obs64, raw64 = jnp.asarray(obs, jnp.float64), jnp.asarray(raw, jnp.float64)
+        a64 = jax.tree.map(lambda x: jnp.asarray(x, jnp.float64), actor)
+        f = lambda p: jnp.sum(teacher.log_prob(p, a64, obs64, raw64))
+        grad = jax.grad(f)(p64)
+        for i in range(3):
+            leaves, tdef = jax.tree.flatten(p64)
+            ks = jax.random.split(jax.random.PRNGKey(10 + i), len(leaves))
+            d = jax.tree.unflatten(tdef, [jax.random.normal(k, x.shape, jnp.float64) for k, x in zip(ks, leaves)])
+            eps = 1e-5
+            fd = (f(jax.tree.map(lambda p, v: p + eps * v, p64, d)) - f(jax.tree.map(lambda p, v: p - eps * v, p64, d))) / (2 * eps)
+            an = sum(jnp.sum(g * v) for g, v in zip(jax.tree.leaves(grad), jax.tree.leaves(d)))
+            np.testing.assert_allclose(an, fd, rtol=1e-6, atol=1e-8)
+
+
+def test_log_prob_is_the_gaussian_density_of_the_unclipped_sample():
+    teacher, actor = _teacher("independent", True, init_log_std=0.3)
+    params = teacher.init(jax.random.PRNGKey(0)).params
+    obs = jnp.ones((3,))
+    action, raw = teacher.sample(params, actor, obs, jax.random.PRNGKey(2))
+    mean, log_std = teacher.distribution(params, actor, obs)
+    np.testing.assert_allclose(log_std, 0.3, atol=0.01)   # starts at init_log_std
+    sd = np.exp(np.asarray(log_std))
+    expected = np.sum(-0.5 * ((np.asarray(raw) - np.asarray(mean)) / sd) ** 2 - np.log(sd) - 0.5 * np.log(2 * np.pi))
+    np.testing.assert_allclose(teacher.log_prob(params, actor, obs, raw), expected, rtol=1e-5)
+    np.testing.assert_array_equal(action, np.clip(raw, -1, 1))
+    # Log-std stays inside its bounds whatever the network says.
+    assert float(teacher.squash_log_std(jnp.asarray(1e6))) == pytest.approx(teacher.cfg.max_log_std)
+    assert float(teacher.squash_log_std(jnp.asarray(-1e6))) == pytest.approx(teacher.cfg.min_log_std)
+
+
+def _reinforce_toy(sign, design="independent"):
+    """A one-step problem: meta reward = sign * (1 - |a - target|^2); D0 = 8 actions at one state."""
+    teacher, actor = _teacher(design, True, lr=3e-3, init_log_std=-1.0)
+    target = jnp.array([0.6, -0.4])
+    obs = jnp.tile(jnp.array([0.2, -0.1, 0.3]), (8, 1))
+
+    def it(state, key):
+        _, raw = teacher.sample(state.params, actor, obs, key)
+        reward = sign * (1.0 - jnp.mean(jnp.sum(jnp.square(jnp.clip(raw, -1, 1) - target), -1)))
+        state, centred = teacher.normalize_reward(state, reward)  # a running baseline for variance reduction
+        return teacher.update(state, actor, obs, raw, centred), None
+
+    state = teacher.init(jax.random.PRNGKey(0))
+    mean0 = teacher.distribution(state.params, actor, obs[0])[0]
+    state, _ = jax.lax.scan(it, state, jax.random.split(jax.random.PRNGKey(1), 400))
+    mean1 = teacher.distribution(state.params, actor, obs[0])[0]
+    return float(jnp.linalg.norm(mean0 - target)), float(jnp.linalg.norm(mean1 - target))
+
+
+def test_reinforce_moves_teacher_toward_higher_meta_reward():
+    before, after = _reinforce_toy(+1.0)
+    assert after < before - 0.2, (before, after)
+    before, after = _reinforce_toy(-1.0)
+    assert after > before + 0.2, (before, after)
+
+
+def test_variance_teacher_never_changes_the_student():
+    teacher, actor = _teacher("variance", True)
+    state = teacher.init(jax.random.PRNGKey(0))
+    obs = jax.random.normal(jax.random.PRNGKey(1), (5, 3))
+    _, raw = teacher.sample(state.params, actor, obs, jax.random.PRNGKey(2))
+    g_actor = jax.grad(teacher.reinforce_loss, argnums=1)(state.params, actor, obs, raw, 3.0)
+    assert all(float(jnp.abs(g).max()) == 0.0 for g in jax.tree.leaves(g_actor))
+    g_teacher = jax.grad(teacher.reinforce_loss)(state.params, actor, obs, raw, 3.0)
+    assert any(float(jnp.abs(g).max()) > 0.0 for g in jax.tree.leaves(g_teacher))
+    assert set(state.params) == {"log_std"}   # the mean is the student's: no parameters of its own
+
+
+@pytest.mark.parametrize("student_from", ["pi", "lookahead"])
+def test_lookahead_does_not_touch_the_student(student_from):
+    # With the warm-up longer than the run, the student's own updates are skipped; so any change
+    # of the student comes from the look-ahead, which must only happen with student_from=lookahead.
+    cfg = tiny_config("meta", steps=300, **{"run.warmup_steps": 10_000, "meta.student_from": student_from})
+    trainer = make_train(cfg)
+    state = trainer.init(jax.random.PRNGKey(0))
+    new, metrics = jax.jit(trainer.cycle)(state)
+    same = jax.tree.leaves(jax.tree.map(lambda a, b: bool(np.array_equal(a, b)), state.student, new.student))
+    assert all(same) == (student_from == "pi")
+    assert np.isfinite(float(metrics["r_hat_lookahead"]))
+
+
+@pytest.mark.parametrize("baseline,eval_envs", [("lookahead", 1), ("lookahead", 2), ("fresh", 1)])
+def test_sample_accounting(baseline, eval_envs):
+    per_cycle = 50 + 100 * eval_envs * (2 if baseline == "fresh" else 1)
+    cfg = tiny_config("meta", steps=4 * per_cycle, eval_every=2 * per_cycle,
+                      **{"meta.baseline": baseline, "meta.eval_envs": eval_envs})
+    trainer = make_train(cfg)
+    state = trainer.init(jax.random.PRNGKey(0))
+    cycle = jax.jit(trainer.cycle)
+    n = 2
+    for _ in range(n):
+        state, m = cycle(state)
+    assert cfg.steps_per_cycle == per_cycle
+    assert int(state.env_steps) == n * per_cycle == int(state.buffer.size)
+    assert int(state.visits.explore_count) == n * 50
+
+
+def test_first_episode_return_truncates_at_the_first_end():
+    r = jnp.array([1.0, 2.0, 3.0, 4.0, 5.0])
+    assert float(meta.first_episode_return(r, jnp.array([0.0, 0.0, 1.0, 0.0, 1.0]))) == 6.0
+    assert float(meta.first_episode_return(r, jnp.zeros(5))) == 15.0
+
+
+def test_meta_reward_is_zero_until_a_baseline_exists_then_the_difference():
+    cfg = tiny_config("meta", steps=300)
+    trainer = make_train(cfg)
+    state = trainer.init(jax.random.PRNGKey(0))
+    cycle = jax.jit(trainer.cycle)
+    state, m0 = cycle(state)
+    assert float(m0["meta_reward"]) == 0.0
+    state, m1 = cycle(state)
+    np.testing.assert_allclose(m1["meta_reward"], m1["r_hat_lookahead"] - m0["r_hat_lookahead"], rtol=1e-5)
+    np.testing.assert_allclose(m1["r_hat_pi"], m0["r_hat_lookahead"])
