@@ -3,21 +3,30 @@
     python -m experiments.run --env=inverted_double_pendulum --seeds=8
     python -m experiments.run --env=pendulum --method=ddpg --noise=ou --steps=90000
     python -m experiments.run --env=hopper --preset=modern --set ddpg.actor_lr=1e-3
+    python -m experiments.run --resume runs/hopper-meta-modern-s0
 
 Writes under ``--out`` (default ``runs/<env>-<method>-<preset>-s<seed>``):
 ``config.json``, ``metrics.jsonl`` (one line per seed per evaluation, appended
 as the run goes), ``cycles.jsonl`` (meta: per-cycle teacher metrics per seed),
-``learning_curve.png`` (mean ± std band and per-seed lines), ``teacher.png``
-(meta), ``summary.json``; and prints the final evaluation return per seed and
-mean ± std.
+``checkpoints/`` (the whole state, the last 2), ``learning_curve.png`` (mean ±
+std band and per-seed lines), ``teacher.png`` (meta), ``visits.npz`` (sampled
+states of the exploring policy and the student, early and late, per seed),
+``policy.npz`` (the deterministic actors, see ``metapg_jax.load_policy``),
+``summary.json``; and prints the final evaluation return per seed and mean ± std.
+
+Exit status: 0 done; 2 bad input (one ``error:`` line, before anything
+compiles); 3 non-finite parameters (the run stops, the last good checkpoint
+stays); 130 interrupted by Ctrl-C (after finishing and checkpointing the chunk
+in flight; ``--resume`` continues).
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
+import json
 import os
 import shutil
+import signal
 import sys
 import time
 
@@ -26,30 +35,45 @@ from metapg_jax import config as config_lib
 
 TEACHER_CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_log_std",
                          "teacher_entropy", "teacher_student_distance")
+# Arguments that define the run; stored in config.json so --resume can rebuild and compare it.
+RUN_ARGS = {"env": "pendulum", "method": "meta", "teacher": None, "preset": "paper", "noise": None,
+            "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "overrides": []}
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m experiments.run",
-        description="Train DDPG (baseline) or Meta (Algorithm 1 of Xu et al., 2018) on many seeds at once.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter)
-    p.add_argument("--env", default="pendulum", help=f"task: {', '.join(envs.TASKS)}")
-    p.add_argument("--method", default="meta", help="'meta' (the paper's learned teacher) or 'ddpg' (noise baseline)")
+        description="Train DDPG (baseline) or Meta (Algorithm 1 of Xu et al., 2018) on many seeds at once.")
+    d = RUN_ARGS
+    p.add_argument("--env", default=None, help=f"task: {', '.join(envs.TASKS)} (default {d['env']})")
+    p.add_argument("--method", default=None,
+                   help="'meta' (the paper's learned teacher, default) or 'ddpg' (noise baseline)")
     p.add_argument("--teacher", default=None,
-                   help="meta teacher design: 'independent' (paper's best) or 'variance' (default: independent)")
-    p.add_argument("--preset", default="paper", help="'paper' (2018 baselines DDPG) or 'modern' (256-256, 1 update/step)")
+                   help="meta teacher design: 'independent' (the paper's best; default) or 'variance'")
+    p.add_argument("--preset", default=None,
+                   help="'paper' (2018 baselines DDPG; default) or 'modern' (256-256, 1 update/step)")
     p.add_argument("--noise", default=None,
                    help="DDPG exploration noise: normal, ou, adaptive-param, none (default: the preset's)")
-    p.add_argument("--seeds", type=int, default=8, help="number of seeds trained at once (vmapped)")
-    p.add_argument("--seed", type=int, default=0, help="base PRNG seed; seed i uses fold_in(PRNGKey(seed), i)")
+    p.add_argument("--seeds", type=int, default=None, help=f"number of seeds trained at once (default {d['seeds']})")
+    p.add_argument("--seed", type=int, default=None,
+                   help="base PRNG seed; seed i uses fold_in(PRNGKey(seed), i) (default 0)")
     p.add_argument("--steps", type=int, default=None,
                    help="stored env steps per seed (default: the paper's budget for the task)")
-    p.add_argument("--source", default="gymnasium", help="MuJoCo models: 'gymnasium' (v5 on MJX) or 'brax'")
-    p.add_argument("--out", default=None, help="output folder (default runs/<env>-<method>-<preset>-s<seed>)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
+    p.add_argument("--source", default=None, help="MuJoCo models: 'gymnasium' (v5 on MJX; default) or 'brax'")
+    p.add_argument("--set", dest="overrides", action="append", default=None, metavar="GROUP.FIELD=VALUE",
                    help="override any config field, e.g. --set ddpg.tau=0.005 --set run.eval_every=3000 "
                         "(groups: env, run, ddpg, noise, meta; see metapg_jax/config.py)")
+    p.add_argument("--out", default=None, help="output folder (default runs/<env>-<method>-<preset>-s<seed>)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("--resume", default=None, metavar="RUN_DIR",
+                   help="continue the run in RUN_DIR from its latest checkpoint; options given with it must "
+                        "match the stored run")
+    p.add_argument("--checkpoint-every", type=int, default=0, metavar="CHUNKS",
+                   help="checkpoint every CHUNKS evaluation chunks; 0 (default) = whenever "
+                        "--checkpoint-minutes have passed, and at the end")
+    p.add_argument("--checkpoint-minutes", type=float, default=5.0,
+                   help="with --checkpoint-every=0: minimum minutes between checkpoints (default 5)")
+    p.add_argument("--debug-nans", action="store_true", help="turn on jax_debug_nans (slow; for hunting NaNs)")
     p.add_argument("--no-plot", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
@@ -65,49 +89,168 @@ def parse_overrides(items: list[str]) -> dict[str, str]:
     return out
 
 
-def config_from_args(args: argparse.Namespace) -> config_lib.Config:
+def run_args(args: argparse.Namespace, stored: dict | None = None) -> dict:
+    """The run-defining arguments: given ones, else the stored run's (on resume), else the defaults."""
+    base = dict(RUN_ARGS if stored is None else stored)
+    for k in RUN_ARGS:
+        v = getattr(args, k)
+        if v is not None:
+            # --set on a resumed run adds to the stored overrides (and must not change anything).
+            base[k] = list(base["overrides"]) + v if k == "overrides" else v
+    return base
+
+
+def config_from_run_args(a: dict) -> config_lib.Config:
     """Builds and validates the config; raises ValueError with one line on bad input."""
-    if args.seeds <= 0:
-        raise ValueError(f"--seeds must be positive, got {args.seeds}")
-    if args.steps is not None and args.steps <= 0:
-        raise ValueError(f"--steps must be positive, got {args.steps}")
-    if args.method == "ddpg" and args.teacher is not None:
+    if a["seeds"] <= 0:
+        raise ValueError(f"--seeds must be positive, got {a['seeds']}")
+    if a["steps"] is not None and a["steps"] <= 0:
+        raise ValueError(f"--steps must be positive, got {a['steps']}")
+    if a["method"] == "ddpg" and a["teacher"] is not None:
         raise ValueError("--teacher applies to --method=meta only")
-    cfg = config_lib.make_config(env=args.env, method=args.method, preset=args.preset, noise=args.noise,
-                                 steps=args.steps, source=args.source, teacher=args.teacher,
-                                 overrides=parse_overrides(args.overrides))
+    cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], noise=a["noise"],
+                                 steps=a["steps"], source=a["source"], teacher=a["teacher"],
+                                 overrides=parse_overrides(a["overrides"]))
     return config_lib.validate(cfg)
+
+
+def check_devices(num_seeds: int) -> None:
+    import jax
+
+    n = jax.device_count()
+    if num_seeds % n:
+        raise ValueError(f"--seeds={num_seeds} is not a multiple of the {n} devices the seed axis is sharded over; "
+                         f"use a multiple of {n} (or limit the devices, e.g. CUDA_VISIBLE_DEVICES)")
+
+
+def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, bool]:
+    """Everything that can fail on user input, before anything compiles: (config, run args, out, resume)."""
+    if args.checkpoint_every < 0 or not args.checkpoint_minutes > 0:
+        raise ValueError("--checkpoint-every must be >= 0 and --checkpoint-minutes > 0")
+    if args.resume:
+        out = args.resume
+        path = os.path.join(out, "config.json")
+        if not os.path.exists(path):
+            raise ValueError(f"--resume {out}: no config.json there (not a run folder)")
+        with open(path) as f:
+            stored = json.load(f)
+        if args.out is not None and os.path.abspath(args.out) != os.path.abspath(out):
+            raise ValueError("--out and --resume name different folders; a resumed run writes into its own folder")
+        a = run_args(args, stored["run_args"])
+        cfg = config_from_run_args(a)
+        differences = config_lib.diff(stored["config"], config_lib.to_dict(cfg))
+        differences += [f"{k} ({stored['run_args'][k]!r} -> {a[k]!r})" for k in ("seeds", "seed")
+                        if stored["run_args"][k] != a[k]]
+        if differences:
+            raise ValueError(f"--resume {out}: the options given change the stored run: {'; '.join(differences)}")
+        if not os.path.isdir(os.path.join(out, "checkpoints")):
+            raise ValueError(f"--resume {out}: no checkpoints/ folder; nothing to resume from")
+    else:
+        a = run_args(args)
+        cfg = config_from_run_args(a)
+        out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}-{cfg.preset}-s{a['seed']}")
+        if os.path.exists(out) and os.listdir(out) and not args.overwrite:
+            raise ValueError(f"output folder {out} exists; pass --resume {out} to continue it, "
+                             f"--overwrite to replace it, or --out elsewhere")
+    check_devices(a["seeds"])
+    return cfg, a, out, bool(args.resume)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    _maybe_initialize_distributed()
     try:
-        cfg = config_from_args(args)
-        out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}-{cfg.preset}-s{args.seed}")
-        if os.path.exists(out) and os.listdir(out) and not args.overwrite:
-            raise ValueError(f"output folder {out} exists; pass --overwrite to replace it or --out elsewhere")
+        cfg, a, out, resume = prepare(args)
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    return run(cfg, args.seeds, args.seed, out, overwrite=args.overwrite, plot=not args.no_plot,
-               quiet=args.quiet)
+    if args.debug_nans:
+        import jax
+
+        jax.config.update("jax_debug_nans", True)
+    return run(cfg, a, out, resume=resume, overwrite=args.overwrite, plot=not args.no_plot, quiet=args.quiet,
+               checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes)
 
 
-def run(cfg: config_lib.Config, num_seeds: int, seed: int, out: str, overwrite: bool = False,
-        plot: bool = True, quiet: bool = False) -> int:
+def _maybe_initialize_distributed() -> None:
+    """Multi-host: ``jax.distributed.initialize()`` when the coordinator is configured.
+
+    Set JAX_COORDINATOR_ADDRESS (host:port of process 0), JAX_NUM_PROCESSES and
+    JAX_PROCESS_ID on every host (or run under SLURM/Open MPI, which JAX
+    detects); the seed axis is then sharded over the devices of all hosts.
+    """
+    if os.environ.get("JAX_COORDINATOR_ADDRESS"):
+        import jax
+
+        jax.distributed.initialize()
+
+
+class _Interrupt:
+    """Ctrl-C sets a flag; the loop finishes the chunk in flight, checkpoints and exits."""
+
+    def __init__(self):
+        self.requested = False
+        self._old = None
+
+    def __enter__(self):
+        def handler(signum, frame):
+            if self.requested:  # a second Ctrl-C stops at once
+                raise KeyboardInterrupt
+            self.requested = True
+            print("\ninterrupt: finishing the current chunk, then checkpointing (Ctrl-C again to abort)",
+                  file=sys.stderr, flush=True)
+
+        self._old = signal.signal(signal.SIGINT, handler)
+        return self
+
+    def __exit__(self, *exc):
+        signal.signal(signal.SIGINT, self._old)
+        return False
+
+
+def _truncate_jsonl(path: str, keep) -> None:
+    """Keeps the rows for which ``keep(row)`` holds (drops rows written after the checkpoint), atomically."""
+    if not os.path.exists(path):
+        return
+    with open(path) as f:
+        lines = [line for line in f if line.strip()]
+    kept = []
+    for line in lines:
+        try:
+            row = json.loads(line)
+        except json.JSONDecodeError:  # a line cut by a kill
+            continue
+        if keep(row):
+            kept.append(line if line.endswith("\n") else line + "\n")
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.writelines(kept)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
+        plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0) -> int:
     import jax
     import numpy as np
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
     from metapg_jax import reporting, replay
+    from metapg_jax.checkpoint import Checkpointer
     from metapg_jax.train import make_train, seed_keys
 
-    if overwrite and os.path.exists(out):
-        shutil.rmtree(out)
-    os.makedirs(out, exist_ok=True)
-    reporting.write_json_atomic(os.path.join(out, "config.json"), {
-        "config": dataclasses.asdict(cfg), "num_seeds": num_seeds, "seed": seed,
-        "jax_version": jax.__version__, "backend": jax.default_backend(),
-        "devices": [str(d) for d in jax.devices()]})
+    num_seeds, seed = a["seeds"], a["seed"]
+    main_process = jax.process_index() == 0
+    if not resume:
+        if overwrite and os.path.exists(out) and main_process:
+            shutil.rmtree(out)
+        os.makedirs(out, exist_ok=True)
+        if main_process:
+            reporting.write_json_atomic(os.path.join(out, "config.json"), {
+                "config": config_lib.to_dict(cfg), "run_args": a,
+                "jax_version": jax.__version__, "backend": jax.default_backend(),
+                "devices": [str(d) for d in jax.devices()]})
 
     trainer = make_train(cfg)
     keys = seed_keys(seed, num_seeds)
@@ -115,46 +258,110 @@ def run(cfg: config_lib.Config, num_seeds: int, seed: int, out: str, overwrite: 
                                                   f"/{cfg.noise.kind}")
     print(f"{name} ({cfg.preset} preset, {cfg.env.source} source): {num_seeds} seeds x "
           f"{cfg.run.total_steps:,} env steps, {cfg.num_chunks} evaluations every {cfg.run.eval_every:,} steps "
-          f"({cfg.cycles_per_chunk} cycles of {cfg.steps_per_cycle} steps); output {out}", flush=True)
+          f"({cfg.cycles_per_chunk} cycles of {cfg.steps_per_cycle} steps) on {jax.device_count()} "
+          f"{jax.default_backend()} device(s); output {out}", flush=True)
 
+    # The seed axis is sharded over all devices (a no-op with one device).
+    seeds_sharding = NamedSharding(Mesh(np.array(jax.devices()), ("seeds",)), PartitionSpec("seeds"))
     t0 = time.perf_counter()
-    state = jax.jit(jax.vmap(trainer.init))(keys)
-    chunk_fn = jax.jit(jax.vmap(trainer.train_chunk), donate_argnums=0).lower(state).compile()
+    init_fn = jax.jit(jax.vmap(trainer.init), out_shardings=seeds_sharding)
+    checkpointer = Checkpointer(os.path.join(out, "checkpoints"))
+    start = 0
+    if resume:
+        state, meta = checkpointer.restore(jax.eval_shape(init_fn, keys))
+        state = jax.device_put(state, seeds_sharding)
+        start = int(meta["chunks_done"])
+        first_cycle = start * cfg.cycles_per_chunk
+        _truncate_jsonl(os.path.join(out, "metrics.jsonl"), lambda r: r["chunk"] < start)
+        _truncate_jsonl(os.path.join(out, "cycles.jsonl"), lambda r: r["cycle"] < first_cycle)
+        print(f"resumed after {start} of {cfg.num_chunks} chunks ({start * cfg.run.eval_every:,} env steps)",
+              flush=True)
+    else:
+        state = init_fn(keys)
+    chunk_fn = jax.jit(jax.vmap(trainer.train_chunk), in_shardings=seeds_sharding,
+                       out_shardings=seeds_sharding, donate_argnums=0).lower(state).compile()
     compile_s = time.perf_counter() - t0
     buffer_mb = num_seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20
     print(f"compiled in {compile_s:.1f} s; replay buffers {buffer_mb:,.0f} MiB", flush=True)
 
+    def ckpt_meta():
+        return {"config": config_lib.to_dict(cfg), "run_args": a}
+
     metrics_writer = reporting.JsonlWriter(os.path.join(out, "metrics.jsonl"))
     cycle_writer = reporting.JsonlWriter(os.path.join(out, "cycles.jsonl")) if cfg.run.method == "meta" else None
     progress = reporting.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet)
-    rows: list[dict] = []
+    if start:
+        progress.update(start * cfg.run.eval_every, np.full(1, np.nan))
+    last_ckpt = time.perf_counter()
     t_train = time.perf_counter()
+    status, chunks_run = 0, 0
     try:
-        for chunk in range(cfg.num_chunks):
-            state, metrics = chunk_fn(state)
-            metrics = jax.device_get(metrics)
-            new_rows = reporting.chunk_rows(metrics, chunk, time.perf_counter() - t_train)
-            metrics_writer.write(new_rows)
-            rows.extend(new_rows)
-            if cycle_writer is not None:
-                cycle_writer.write(reporting.cycle_rows(metrics, TEACHER_CYCLE_METRICS,
-                                                        chunk * cfg.cycles_per_chunk))
-            progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
+        with _Interrupt() as interrupt:
+            for chunk in range(start, cfg.num_chunks):
+                state, metrics = chunk_fn(state)
+                metrics = _to_host(metrics)
+                chunks_run += 1
+                bad = _first_nonfinite(metrics, chunk, cfg)
+                if bad is not None:
+                    seed_i, step = bad
+                    done = checkpointer.steps()
+                    print(f"\nerror: non-finite parameters in seed {seed_i} by env step {step:,} (chunk {chunk}); "
+                          f"run stopped. Last good checkpoint: "
+                          f"{f'after chunk {done[-1]}' if done else 'none'} in {checkpointer.directory}. "
+                          f"Try --debug-nans or a smaller learning rate.", file=sys.stderr, flush=True)
+                    status = 3
+                    break
+                if main_process:
+                    metrics_writer.write(reporting.chunk_rows(metrics, chunk, time.perf_counter() - t_train))
+                    if cycle_writer is not None:
+                        cycle_writer.write(reporting.cycle_rows(metrics, TEACHER_CYCLE_METRICS,
+                                                                chunk * cfg.cycles_per_chunk))
+                progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
+                last = chunk + 1 == cfg.num_chunks
+                due = ((chunk + 1 - start) % checkpoint_every == 0) if checkpoint_every else \
+                    (time.perf_counter() - last_ckpt) >= 60 * checkpoint_minutes
+                if last or due or interrupt.requested:
+                    checkpointer.save(chunk + 1, state, ckpt_meta())
+                    last_ckpt = time.perf_counter()
+                if interrupt.requested and not last:
+                    print(f"\ninterrupted: checkpointed after chunk {chunk + 1} of {cfg.num_chunks}; "
+                          f"continue with: python -m experiments.run --resume {out}", file=sys.stderr, flush=True)
+                    status = 130
+                    break
     finally:
         progress.close()
         metrics_writer.close()
         if cycle_writer is not None:
             cycle_writer.close()
+        checkpointer.close()
+    if status:
+        return status
     train_s = time.perf_counter() - t_train
-
-    summary = reporting.summarize(rows)
-    summary.update({
-        "method": cfg.run.method, "env": cfg.env.name, "preset": cfg.preset, "source": cfg.env.source,
+    if not main_process:
+        return 0
+    state = _to_host(state)
+    finalize(cfg, out, state, num_seeds, plot=plot, extra={
         "compile_seconds": round(compile_s, 2), "train_seconds": round(train_s, 2),
-        "env_steps_per_second_total": round(num_seeds * cfg.run.total_steps / train_s, 1),
+        "env_steps_per_second_total": round(num_seeds * chunks_run * cfg.run.eval_every / max(train_s, 1e-9), 1),
         "replay_mib": round(buffer_mb, 1), "peak_rss_mib": round(_peak_rss_mib(), 1),
-    })
+        "devices": jax.device_count(), "backend": jax.default_backend(), "resumed_from_chunk": start})
+    return 0
+
+
+def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool = True, extra: dict | None = None):
+    """Summary, plots, the exported policies and the visited-state sample, from a finished state."""
+    from metapg_jax import reporting
+    from metapg_jax.policy import export_policies
+
+    rows = reporting.read_jsonl(os.path.join(out, "metrics.jsonl"))
+    summary = reporting.summarize(rows)
+    summary.update({"method": cfg.run.method, "env": cfg.env.name, "preset": cfg.preset, "source": cfg.env.source,
+                    **(extra or {})})
     reporting.write_json_atomic(os.path.join(out, "summary.json"), summary)
+    export_policies(os.path.join(out, "policy.npz"), cfg, state.student.actor, state.normalizer)
+    _save_visits(os.path.join(out, "visits.npz"), state.visits)
+    name = f"{cfg.env.name} {cfg.run.method}" + (f"/{cfg.meta.teacher}" if cfg.run.method == "meta" else
+                                                  f"/{cfg.noise.kind}")
     if plot:
         title = f"{name}, {cfg.preset} preset: {num_seeds} seeds"
         reporting.plot_learning_curve(rows, os.path.join(out, "learning_curve.png"), title)
@@ -165,11 +372,51 @@ def run(cfg: config_lib.Config, num_seeds: int, seed: int, out: str, overwrite: 
                          os.path.join(out, "teacher.png"), title)
     for i, v in enumerate(summary["final_eval_return_per_seed"]):
         print(f"seed {i}: final eval return {v:.1f}")
-    print(f"{name}: final eval return {summary['final_eval_return_mean']:.1f} ± "
-          f"{summary['final_eval_return_std']:.1f} (mean ± std over {num_seeds} seeds, "
-          f"{summary['env_steps']:,} env steps); {summary['env_steps_per_second_total']:,.0f} env steps/s total, "
-          f"compile {compile_s:.1f} s, peak RSS {summary['peak_rss_mib']:,.0f} MiB")
-    return 0
+    line = (f"{name}: final eval return {summary['final_eval_return_mean']:.1f} ± "
+            f"{summary['final_eval_return_std']:.1f} (mean ± std over {num_seeds} seeds, "
+            f"{summary['env_steps']:,} env steps)")
+    if "env_steps_per_second_total" in summary:
+        line += (f"; {summary['env_steps_per_second_total']:,.0f} env steps/s total, "
+                 f"compile {summary['compile_seconds']:.1f} s, peak RSS {summary['peak_rss_mib']:,.0f} MiB")
+    print(line)
+    return summary
+
+
+def _to_host(tree):
+    """Fetches (possibly multi-host sharded) arrays to NumPy on this host."""
+    import jax
+
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        return multihost_utils.process_allgather(tree, tiled=True)
+    return jax.device_get(tree)
+
+
+def _first_nonfinite(metrics, chunk: int, cfg: config_lib.Config):
+    """(seed, env step) of the first cycle whose parameters are non-finite, or None."""
+    import numpy as np
+
+    finite = np.asarray(metrics["cycle"]["finite"])  # (seeds, cycles)
+    if finite.all():
+        return None
+    cycles = np.where(~finite.all(0))[0]
+    c = int(cycles[0])
+    seed_i = int(np.where(~finite[:, c])[0][0])
+    step = (chunk * cfg.cycles_per_chunk + c + 1) * cfg.steps_per_cycle
+    return seed_i, step
+
+
+def _save_visits(path: str, visits) -> None:
+    """The bounded sample of visited states per seed (for the state-visitation figure), atomically."""
+    import dataclasses
+
+    import numpy as np
+
+    arrays = {f.name: np.asarray(getattr(visits, f.name)) for f in dataclasses.fields(visits)}
+    tmp = path + ".tmp.npz"
+    np.savez_compressed(tmp, **arrays)
+    os.replace(tmp, path)
 
 
 def _peak_rss_mib() -> float:

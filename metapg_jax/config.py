@@ -314,3 +314,45 @@ def validate(cfg: Config) -> Config:
     if cfg.buffer_capacity < cycle:
         raise ValueError(f"replay capacity {cfg.buffer_capacity} is smaller than one cycle ({cycle} steps)")
     return cfg
+
+
+def to_dict(cfg: Config) -> dict[str, Any]:
+    """The config as plain JSON-able nested dicts (tuples become lists)."""
+    return json_roundtrip(dataclasses.asdict(cfg))
+
+
+def json_roundtrip(obj: Any) -> Any:
+    import json
+
+    return json.loads(json.dumps(obj))
+
+
+def from_dict(d: dict[str, Any]) -> Config:
+    """Inverse of ``to_dict`` (used to resume a run from its stored config)."""
+    groups = {}
+    for f in dataclasses.fields(Config):
+        if f.name not in d:
+            continue
+        if dataclasses.is_dataclass(f.default):
+            cls = type(f.default)
+            types = _field_types(cls)
+            unknown = set(d[f.name]) - set(types)
+            if unknown:
+                raise ValueError(f"stored config has unknown fields {sorted(unknown)} in group {f.name!r}")
+            groups[f.name] = cls(**{k: _coerce(v, types[k], f"{f.name}.{k}") for k, v in d[f.name].items()})
+        else:
+            groups[f.name] = d[f.name]
+    return Config(**groups)
+
+
+def diff(a: dict[str, Any], b: dict[str, Any], prefix: str = "") -> list[str]:
+    """Dotted names of the fields whose values differ between two ``to_dict`` results."""
+    out = []
+    for k in sorted(set(a) | set(b)):
+        name = f"{prefix}{k}"
+        va, vb = a.get(k), b.get(k)
+        if isinstance(va, dict) and isinstance(vb, dict):
+            out.extend(diff(va, vb, name + "."))
+        elif va != vb:
+            out.append(f"{name} ({va!r} -> {vb!r})")
+    return out

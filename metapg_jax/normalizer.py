@@ -41,8 +41,10 @@ def update(state: NormalizerState, obs: jax.Array) -> NormalizerState:
 
 
 def mean_std(state: NormalizerState) -> tuple[jax.Array, jax.Array]:
-    mean = state.sum / state.count
-    var = jnp.maximum(state.sumsq / state.count - jnp.square(mean), _EPS)
+    """Mean and std; works with leading (e.g. seed) axes, where ``count`` has one entry per row."""
+    count = state.count[..., None]
+    mean = state.sum / count
+    var = jnp.maximum(state.sumsq / count - jnp.square(mean), _EPS)
     return mean, jnp.sqrt(var)
 
 

@@ -91,7 +91,7 @@ def chunk_rows(metrics: dict, chunk: int, wall_time: float) -> list[dict]:
             "wall_time": round(wall_time, 3),
         }
         for name, values in cyc.items():
-            if name in ("train_return", "train_episodes") or np.ndim(values[i]) != 1:
+            if name in ("train_return", "train_episodes", "finite") or np.ndim(values[i]) != 1:
                 continue
             v = np.asarray(values[i], np.float64)
             row[name] = _clean(np.nanmean(v)) if np.isfinite(v).any() else None

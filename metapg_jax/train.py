@@ -52,6 +52,18 @@ class TrainState:
     cycles: jax.Array                # int32
 
 
+def all_finite(state: TrainState) -> jax.Array:
+    """NaN/inf guard, computed inside the program: are the student's (and teacher's) parameters finite?
+
+    Returned per cycle in the metrics, so the host learns of a bad seed at the
+    next chunk boundary without any host sync inside the chunk.
+    """
+    trees = [state.student.actor, state.student.critic]
+    if hasattr(state.explorer, "params"):
+        trees.append(state.explorer.params)
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(trees)]))
+
+
 def seed_keys(seed: int, num_seeds: int) -> jax.Array:
     """One key per seed; seed i's key does not depend on how many seeds run."""
     base = jax.random.PRNGKey(seed)
@@ -195,6 +207,7 @@ class Trainer:
             state, metrics = meta.meta_cycle(self, state)
         else:
             state, metrics = self.ddpg_cycle(state)
+        metrics["finite"] = all_finite(state)
         return state.replace(cycles=state.cycles + 1), metrics
 
     # ------------------------------------------------------------------ chunks

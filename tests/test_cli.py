@@ -42,7 +42,7 @@ def test_existing_output_needs_overwrite(tmp_path, capsys):
     out.mkdir()
     (out / "metrics.jsonl").write_text("{}\n")
     assert run.main(["--out", str(out)]) == 2
-    assert "exists; pass --overwrite" in capsys.readouterr().err
+    assert "exists; pass --resume" in capsys.readouterr().err
 
 
 def test_help_documents_every_option():
@@ -56,12 +56,15 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     out = tmp_path / "meta"
     cmd = [sys.executable, "-m", "experiments.run", "--env=pendulum", "--method=meta", "--seeds=2",
            "--steps=600", "--quiet", "--out", str(out), "--set", "run.eval_every=300",
-           "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16", "--set", "run.eval_episodes=2"]
+           "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16", "--set", "run.eval_episodes=2",
+           "--set", "meta.visit_samples=64"]
     res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=600,
                          env={**os.environ, "JAX_PLATFORMS": "cpu"})
     assert res.returncode == 0, res.stderr[-3000:]
     assert "final eval return" in res.stdout and "mean ± std over 2 seeds" in res.stdout
-    for name in ("config.json", "metrics.jsonl", "cycles.jsonl", "summary.json", "learning_curve.png", "teacher.png"):
+    for name in ("config.json", "metrics.jsonl", "cycles.jsonl", "summary.json", "learning_curve.png", "teacher.png",
+                 "policy.npz", "checkpoints",
+                 "visits.npz"):
         assert (out / name).exists(), name
     rows = [json.loads(line) for line in (out / "metrics.jsonl").read_text().splitlines()]
     assert len(rows) == 2 * 2 and {r["seed"] for r in rows} == {0, 1}
@@ -70,5 +73,9 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     assert len(summary["final_eval_return_per_seed"]) == 2
     assert summary["final_eval_return_mean"] == pytest.approx(
         sum(summary["final_eval_return_per_seed"]) / 2, rel=1e-5)
+    import numpy as np
+
+    visits = np.load(out / "visits.npz")
+    assert visits["explore_early"].shape == (2, 64, 3) and int(visits["explore_count"][0]) == 2 * 50
     cycles = [json.loads(line) for line in (out / "cycles.jsonl").read_text().splitlines()]
     assert len(cycles) == 2 * (600 // 300) and "meta_reward" in cycles[0]

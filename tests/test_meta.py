@@ -145,3 +145,21 @@ def test_meta_reward_is_zero_until_a_baseline_exists_then_the_difference():
     state, m1 = cycle(state)
     np.testing.assert_allclose(m1["meta_reward"], m1["r_hat_lookahead"] - m0["r_hat_lookahead"], rtol=1e-5)
     np.testing.assert_allclose(m1["r_hat_pi"], m0["r_hat_lookahead"])
+
+
+@pytest.mark.parametrize("preset,normalize", [("paper", True), ("modern", False)])
+def test_meta_cycle_runs_with_both_presets_and_reward_normalisation(preset, normalize):
+    from metapg_jax.config import make_config
+
+    cfg = make_config("pendulum", "meta", preset, steps=900, overrides={
+        "run.eval_every": 900, "meta.explore_steps": 50, "meta.eval_steps": 100, "ddpg.hidden": "32,32",
+        "meta.hidden": "32,32", "meta.normalize_meta_reward": normalize, "meta.visit_samples": 16})
+    assert cfg.run.train_steps == (150 if preset == "modern" else 50)
+    trainer = make_train(cfg)
+    state = trainer.init(jax.random.PRNGKey(0))
+    cycle = jax.jit(trainer.cycle)
+    for _ in range(3):
+        state, m = cycle(state)
+    assert np.isfinite(float(m["meta_reward"])) and np.isfinite(float(m["critic_loss"]))
+    if normalize:
+        assert int(state.explorer.reward_count) == 2   # the first cycle has no meta reward to normalise

@@ -1,0 +1,105 @@
+"""Replay-buffer micro-benchmark: our ring buffer vs flashbax's item buffer, under jit + vmap.
+
+    python -m experiments.bench_replay [--seeds 8] [--capacity 100000]
+
+One "cycle" = add 100 transitions, then draw 50 minibatches of 64 (the paper
+preset's DDPG cycle without the networks). Both buffers run the same scan of
+cycles for ``--seeds`` seeds in one compiled program; the script prints
+compile time and the median steady-state time per cycle over repeats.
+flashbax is optional (``pip install flashbax``); without it only ours is timed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+
+import jax
+import jax.numpy as jnp
+
+from metapg_jax import replay
+from metapg_jax.types import Transition
+
+
+def _batch(key, n, obs_size, act_size):
+    k1, k2 = jax.random.split(key)
+    return Transition(obs=jax.random.normal(k1, (n, obs_size)), action=jax.random.uniform(k2, (n, act_size)),
+                      reward=jnp.ones((n,)), next_obs=jax.random.normal(k2, (n, obs_size)),
+                      terminated=jnp.zeros((n,)), truncated=jnp.zeros((n,)))
+
+
+def make_ours(capacity, obs_size, act_size, batch_size):
+    def init(key):
+        return replay.init(capacity, obs_size, act_size)
+
+    def cycle(state, key):
+        k_add, k_s = jax.random.split(key)
+        state = replay.add(state, _batch(k_add, 100, obs_size, act_size))
+        samples = jax.vmap(lambda k: replay.sample(state, k, batch_size).reward.sum())(jax.random.split(k_s, 50))
+        return state, samples.sum()
+
+    return init, cycle
+
+
+def make_flashbax(capacity, obs_size, act_size, batch_size):
+    import flashbax as fbx
+
+    buf = fbx.make_item_buffer(max_length=capacity, min_length=1, sample_batch_size=batch_size,
+                               add_sequences=True)
+
+    def init(key):
+        item = jax.tree.map(lambda x: x[0], _batch(key, 1, obs_size, act_size))
+        return buf.init(item)
+
+    def cycle(state, key):
+        k_add, k_s = jax.random.split(key)
+        state = buf.add(state, _batch(k_add, 100, obs_size, act_size))
+        samples = jax.vmap(lambda k: buf.sample(state, k).experience.reward.sum())(jax.random.split(k_s, 50))
+        return state, samples.sum()
+
+    return init, cycle
+
+
+def bench(name, factory, seeds, capacity, cycles, repeats):
+    init, cycle = factory(capacity, 9, 1, 64)
+
+    def run(state, key):
+        return jax.lax.scan(cycle, state, jax.random.split(key, cycles))
+
+    keys = jax.random.split(jax.random.PRNGKey(0), seeds)
+    state = jax.jit(jax.vmap(init))(keys)
+    t0 = time.perf_counter()
+    fn = jax.jit(jax.vmap(run), donate_argnums=0).lower(state, keys).compile()
+    compile_s = time.perf_counter() - t0
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        state, out = fn(state, keys)
+        jax.block_until_ready(out)
+        times.append(time.perf_counter() - t)
+    per_cycle_ms = 1e3 * statistics.median(times) / cycles
+    print(f"{name:10s} seeds={seeds} capacity={capacity:,}: compile {compile_s:.2f} s, "
+          f"{per_cycle_ms:.3f} ms per cycle (add 100 + 50 x sample 64), median of {repeats}")
+    return per_cycle_ms
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--seeds", type=int, default=8)
+    p.add_argument("--capacity", type=int, default=100_000)
+    p.add_argument("--cycles", type=int, default=200)
+    p.add_argument("--repeats", type=int, default=5)
+    a = p.parse_args()
+    ours = bench("ring", make_ours, a.seeds, a.capacity, a.cycles, a.repeats)
+    try:
+        import flashbax  # noqa: F401
+    except ImportError:
+        print("flashbax not installed: only the ring buffer was timed")
+        return
+    fbx_ms = bench("flashbax", make_flashbax, a.seeds, a.capacity, a.cycles, a.repeats)
+    print(f"flashbax / ring time ratio: {fbx_ms / ours:.2f}")
+
+
+if __name__ == "__main__":
+    main()

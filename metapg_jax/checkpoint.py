@@ -1,0 +1,82 @@
+"""Checkpoints of the whole (seed-batched) ``TrainState`` with orbax, plus run metadata.
+
+A checkpoint is the complete state: student and teacher parameters, all
+optimizer states, the replay buffers, the environment states, the normaliser,
+PRNG keys and counters, so a resumed run continues bit for bit. Each
+checkpoint also stores JSON metadata: the config that built the state, the
+number of seeds, the base seed and how many chunks were done.
+
+orbax writes each checkpoint to a temporary folder and renames it when
+complete, so a checkpoint that exists is whole; if the latest one is unreadable
+anyway (a truncated or corrupted file), ``restore`` warns and falls back to the
+previous one. The last ``keep`` [2] checkpoints are kept.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from typing import Any
+
+import jax
+import numpy as np
+import orbax.checkpoint as ocp
+
+
+class Checkpointer:
+    def __init__(self, directory: str, keep: int = 2):
+        self.directory = os.path.abspath(directory)
+        self.manager = ocp.CheckpointManager(
+            self.directory,
+            options=ocp.CheckpointManagerOptions(max_to_keep=keep, enable_async_checkpointing=False,
+                                                 create=True))
+
+    def steps(self) -> list[int]:
+        """Completed checkpoints, by number of chunks done, newest last."""
+        self.manager.reload()
+        return sorted(self.manager.all_steps())
+
+    def save(self, chunks_done: int, state: Any, meta: dict) -> None:
+        """Saves the state after ``chunks_done`` chunks (blocking; atomic by orbax's rename)."""
+        if jax.process_count() > 1:
+            state = jax.tree.map(lambda x: x, state)  # global arrays: orbax coordinates the hosts
+        self.manager.save(chunks_done, args=ocp.args.Composite(
+            state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave({**meta, "chunks_done": chunks_done})),
+            force=True)
+        self.manager.wait_until_finished()
+
+    def restore(self, abstract_state: Any, step: int | None = None) -> tuple[Any, dict]:
+        """The newest readable checkpoint (or ``step``): (state, metadata).
+
+        ``abstract_state`` gives the shapes, dtypes and pytree structure
+        (``jax.eval_shape`` of the init). Unreadable checkpoints are skipped
+        with a warning; if none can be read, raises ``FileNotFoundError``.
+        """
+        candidates = [step] if step is not None else list(reversed(self.steps()))
+        if not candidates:
+            raise FileNotFoundError(f"no checkpoint in {self.directory}")
+        abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, abstract_state)
+        errors = []
+        for s in candidates:
+            try:
+                out = self.manager.restore(s, args=ocp.args.Composite(
+                    state=ocp.args.StandardRestore(abstract), meta=ocp.args.JsonRestore()))
+                _check_shapes(abstract, out.state)
+                if errors:
+                    warnings.warn(f"checkpoint(s) {', '.join(e[0] for e in errors)} in {self.directory} could not be "
+                                  f"read ({errors[0][1]}); resumed from the one after {s} chunks instead",
+                                  RuntimeWarning, stacklevel=2)
+                return out.state, dict(out.meta)
+            except Exception as err:  # noqa: BLE001 - any failure to read means: try the previous one
+                errors.append((str(s), f"{type(err).__name__}: {str(err)[:200]}"))
+        raise FileNotFoundError(f"no readable checkpoint in {self.directory}: " +
+                                "; ".join(f"{s}: {e}" for s, e in errors))
+
+    def close(self) -> None:
+        self.manager.close()
+
+
+def _check_shapes(abstract, state) -> None:
+    for a, b in zip(jax.tree.leaves(abstract), jax.tree.leaves(state)):
+        if tuple(a.shape) != tuple(np.shape(b)):
+            raise ValueError(f"checkpoint array of shape {np.shape(b)} where {a.shape} was expected")

@@ -1,0 +1,104 @@
+"""Export and load trained deterministic policies, outside JAX training code.
+
+``export_policies(path, config, student_actor, normalizer)`` writes one
+self-describing ``.npz`` file holding, for every seed, the actor's parameters
+and the observation normaliser, plus a JSON description (architecture, task,
+action scaling, config). ``load_policy(path, seed=i)`` returns a plain
+function ``numpy obs (obs_size,) or (batch, obs_size) -> numpy action in
+[-1, 1]^action_size`` computed with NumPy alone (no JAX needed at load time).
+
+Actions are in the normalised box [-1, 1] every task of this project uses;
+``description["action_low"/"action_high"]`` give the env's own bounds
+(``low + (a + 1) / 2 * (high - low)``) for use with e.g. gymnasium directly.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from typing import Callable
+
+import numpy as np
+
+FORMAT = "metapg-jax-policy/1"
+
+
+def _flatten(tree, prefix=""):
+    out = {}
+    for k, v in tree.items():
+        name = f"{prefix}/{k}" if prefix else k
+        if isinstance(v, dict):
+            out.update(_flatten(v, name))
+        else:
+            out[name] = np.asarray(v)
+    return out
+
+
+def export_policies(path: str, config, student_actor, normalizer, action_low=None, action_high=None) -> None:
+    """Writes the actors of all seeds (leading seed axis) and their normalisers to ``path`` atomically."""
+    from metapg_jax import config as config_lib
+    from metapg_jax import normalizer as norm_lib
+
+    actor = _flatten(student_actor["params"] if "params" in student_actor else student_actor)
+    mean, std = norm_lib.mean_std(normalizer)
+    num_seeds = int(np.asarray(mean).shape[0])
+    description = {
+        "format": FORMAT,
+        "num_seeds": num_seeds,
+        "env": config.env.name,
+        "source": config.env.source,
+        "hidden": list(config.ddpg.hidden),
+        "layer_norm": bool(config.ddpg.layer_norm),
+        "layer_norm_epsilon": 1e-6,
+        "normalize_obs": bool(config.ddpg.normalize_obs),
+        "obs_clip": float(config.ddpg.obs_clip),
+        "obs_size": int(np.asarray(mean).shape[-1]),
+        "action_size": int(actor["out/bias"].shape[-1]),
+        "action_low": None if action_low is None else np.asarray(action_low).tolist(),
+        "action_high": None if action_high is None else np.asarray(action_high).tolist(),
+        "activation": "relu", "output": "tanh",
+        "config": config_lib.to_dict(config),
+    }
+    arrays = {f"actor/{k}": v for k, v in actor.items()}
+    arrays["normalizer/mean"] = np.asarray(mean)
+    arrays["normalizer/std"] = np.asarray(std)
+    arrays["description"] = np.frombuffer(json.dumps(description).encode(), dtype=np.uint8)
+    tmp = path + ".tmp.npz"
+    np.savez_compressed(tmp, **arrays)
+    os.replace(tmp, path)
+
+
+def describe(path: str) -> dict:
+    with np.load(path) as f:
+        return json.loads(bytes(f["description"]).decode())
+
+
+def load_policy(path: str, seed: int = 0) -> Callable[[np.ndarray], np.ndarray]:
+    """A NumPy function obs -> action for seed ``seed`` of an exported file."""
+    with np.load(path) as f:
+        desc = json.loads(bytes(f["description"]).decode())
+        if desc.get("format") != FORMAT:
+            raise ValueError(f"{path} is not a {FORMAT} file")
+        if not 0 <= seed < desc["num_seeds"]:
+            raise ValueError(f"seed {seed} out of range: {path} holds {desc['num_seeds']} seeds")
+        p = {k[len("actor/"):]: f[k][seed].astype(np.float64) for k in f.files if k.startswith("actor/")}
+        mean = f["normalizer/mean"][seed].astype(np.float64)
+        std = f["normalizer/std"][seed].astype(np.float64)
+    n_hidden, ln, eps, clip = len(desc["hidden"]), desc["layer_norm"], desc["layer_norm_epsilon"], desc["obs_clip"]
+    normalize = desc["normalize_obs"]
+
+    def policy(obs: np.ndarray) -> np.ndarray:
+        x = np.asarray(obs, np.float64)
+        if normalize:
+            x = np.clip((x - mean) / std, -clip, clip)
+        for i in range(n_hidden):
+            x = x @ p[f"dense_{i}/kernel"] + p[f"dense_{i}/bias"]
+            if ln:
+                mu = x.mean(-1, keepdims=True)
+                var = x.var(-1, keepdims=True)
+                x = (x - mu) / np.sqrt(var + eps) * p[f"ln_{i}/scale"] + p[f"ln_{i}/bias"]
+            x = np.maximum(x, 0.0)
+        return np.tanh(x @ p["out/kernel"] + p["out/bias"]).astype(np.float32)
+
+    policy.description = desc  # type: ignore[attr-defined]
+    return policy
