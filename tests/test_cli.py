@@ -76,6 +76,6 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     import numpy as np
 
     visits = np.load(out / "visits.npz")
-    assert visits["explore_early"].shape == (2, 64, 3) and int(visits["explore_count"][0]) == 2 * 50
+    assert visits["explore_early"].shape == (2, 64, 3) and int(visits["explore_count"][0]) == 2 * 100
     cycles = [json.loads(line) for line in (out / "cycles.jsonl").read_text().splitlines()]
     assert len(cycles) == 2 * (600 // 300) and "meta_reward" in cycles[0]
