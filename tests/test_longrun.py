@@ -1,0 +1,183 @@
+"""Long runs: resume equality, SIGKILL + resume, corrupted checkpoint, device sharding, NaN guard, export."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from experiments import run
+from metapg_jax import load_policy
+from metapg_jax.checkpoint import Checkpointer
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TINY = ["--env=pendulum", "--method=meta", "--seeds=2", "--quiet", "--no-plot",
+        "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
+        "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--checkpoint-every=1"]
+
+
+def _metrics(out):
+    rows = [json.loads(line) for line in open(os.path.join(out, "metrics.jsonl"))]
+    for r in rows:
+        r.pop("wall_time")
+    return rows
+
+
+def _policy_arrays(out):
+    with np.load(os.path.join(out, "policy.npz")) as f:
+        return {k: f[k] for k in f.files if k != "description"}
+
+
+def _assert_same_run(a, b):
+    assert _metrics(a) == _metrics(b)
+    pa, pb = _policy_arrays(a), _policy_arrays(b)
+    assert pa.keys() == pb.keys()
+    for k in pa:
+        np.testing.assert_array_equal(pa[k], pb[k], err_msg=k)
+
+
+def _subprocess(args, **kw):
+    env = {**os.environ, "JAX_PLATFORMS": "cpu", **kw.pop("env", {})}
+    return subprocess.Popen([sys.executable, "-m", "experiments.run", *args], cwd=ROOT, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """An uninterrupted 3-chunk run."""
+    out = str(tmp_path_factory.mktemp("ref") / "run")
+    assert run.main(TINY + ["--steps=900", "--out", out]) == 0
+    return out
+
+
+def test_resume_continues_bit_for_bit_without_duplicate_metrics(reference, tmp_path):
+    out = str(tmp_path / "run")
+    assert run.main(TINY + ["--steps=900", "--out", out]) == 0
+    # Drop the last checkpoint: the resumed run restarts after chunk 2 and redoes chunk 3.
+    ck = Checkpointer(os.path.join(out, "checkpoints"))
+    assert ck.steps() == [2, 3]          # the last two are kept
+    ck.manager.delete(3)
+    ck.close()
+    assert run.main(["--resume", out, "--quiet", "--no-plot"]) == 0
+    _assert_same_run(reference, out)
+
+
+def test_sigkill_then_resume_gives_the_same_result(tmp_path):
+    out = str(tmp_path / "killed")
+    steps = ["--steps=2700"]
+    proc = _subprocess(TINY + steps + ["--out", out])
+    metrics = os.path.join(out, "metrics.jsonl")
+    deadline = time.time() + 300
+    while time.time() < deadline:
+        if os.path.exists(metrics) and sum(1 for _ in open(metrics)) >= 4:  # 2 chunks x 2 seeds
+            break
+        if proc.poll() is not None:
+            pytest.fail("the run ended before it could be killed: " + proc.stderr.read()[-2000:])
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    done = Checkpointer(os.path.join(out, "checkpoints")).steps()
+    assert done and done[-1] < 9, done
+    res = _subprocess(["--resume", out, "--quiet", "--no-plot"])
+    _, err = res.communicate(timeout=600)
+    assert res.returncode == 0, err[-3000:]
+    full = str(tmp_path / "full")
+    assert run.main(TINY + steps + ["--out", full]) == 0
+    _assert_same_run(full, out)
+
+
+def test_corrupted_latest_checkpoint_falls_back_to_the_previous(reference, tmp_path):
+    import shutil
+
+    out = str(tmp_path / "copy")
+    shutil.copytree(reference, out)
+    latest = os.path.join(out, "checkpoints", "3", "state")
+    for root, _, files in os.walk(latest):
+        for name in files:
+            with open(os.path.join(root, name), "wb") as f:
+                f.write(b"garbage")
+    from metapg_jax import config as config_lib
+    from metapg_jax.train import make_train, seed_keys
+
+    stored = json.load(open(os.path.join(out, "config.json")))
+    trainer = make_train(config_lib.from_dict(stored["config"]))
+    abstract = jax.eval_shape(jax.vmap(trainer.init), seed_keys(0, 2))
+    ck = Checkpointer(os.path.join(out, "checkpoints"))
+    with pytest.warns(RuntimeWarning, match="could not be read"):
+        state, meta = ck.restore(abstract)
+    assert meta["chunks_done"] == 2 and int(state.env_steps[0]) == 600
+
+
+def test_resume_with_another_config_is_refused_naming_the_fields(reference, capsys):
+    assert run.main(["--resume", reference, "--set", "ddpg.tau=0.5", "--seeds=4"]) == 2
+    err = capsys.readouterr().err
+    assert "ddpg.tau (0.01 -> 0.5)" in err and "seeds (2 -> 4)" in err
+    assert run.main(["--resume", os.path.dirname(reference)]) == 2
+    assert "no config.json" in capsys.readouterr().err
+
+
+def test_seed_results_do_not_depend_on_the_device_count(reference, tmp_path):
+    # 4 seeds on 2 devices: each device runs 2 seeds, the same per-device program as the 1-device
+    # reference of 2 seeds; seeds 0 and 1 must come out identical (seed i's key is fold_in(key, i)).
+    out = str(tmp_path / "two_devices")
+    flags = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
+    proc = _subprocess(TINY + ["--steps=900", "--seeds=4", "--out", out], env=flags)
+    stdout, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err[-3000:]
+    assert "on 2 cpu device(s)" in stdout
+    a, b = _policy_arrays(reference), _policy_arrays(out)
+    # Not bitwise: XLA:CPU splits matmuls over a per-device thread pool, so float32 round-off
+    # differs with the device count (measured: ~1e-7 after one update, ~5e-6 after 3 chunks).
+    # Seeds themselves differ by orders of magnitude more.
+    for k in a:
+        np.testing.assert_allclose(a[k], b[k][:2], rtol=1e-3, atol=2e-5, err_msg=k)
+    assert np.abs(a["actor/dense_0/kernel"][0] - a["actor/dense_0/kernel"][1]).max() > 1e-2
+    bad = _subprocess(TINY + ["--steps=900", "--seeds=3", "--out", str(tmp_path / "x")], env=flags)
+    _, err = bad.communicate(timeout=300)
+    assert bad.returncode == 2 and "not a multiple of the 2 devices" in err
+
+
+def test_nan_guard_names_the_seed_and_stops(tmp_path, capsys):
+    out = str(tmp_path / "nan")
+    code = run.main(TINY + ["--steps=900", "--out", out, "--set", "ddpg.critic_lr=1e30", "--set", "ddpg.actor_lr=1e30"])
+    assert code == 3
+    err = capsys.readouterr().err
+    assert "non-finite parameters in seed" in err and "run stopped" in err
+    assert not os.path.exists(os.path.join(out, "summary.json"))
+
+
+def test_exported_policy_reproduces_the_training_evaluation(reference):
+    from metapg_jax import config as config_lib
+    from metapg_jax.evaluate import evaluate
+    from metapg_jax.train import make_train, seed_keys
+
+    stored = json.load(open(os.path.join(reference, "config.json")))
+    trainer = make_train(config_lib.from_dict(stored["config"]))
+    abstract = jax.eval_shape(jax.vmap(trainer.init), seed_keys(0, 2))
+    ck = Checkpointer(os.path.join(reference, "checkpoints"))
+    state, _ = ck.restore(abstract)
+    ck.close()
+    key = jax.random.PRNGKey(7)
+    for seed in (0, 1):
+        s = jax.tree.map(lambda x: x[seed], state)
+        expected, _ = trainer.evaluate(s, key)
+        policy = load_policy(os.path.join(reference, "policy.npz"), seed=seed)
+        obs = np.random.default_rng(0).normal(size=(50, 3)).astype(np.float32)
+        jax_act = jax.vmap(trainer.ddpg.deterministic_policy(s.student.actor, s.normalizer))(obs)
+        np.testing.assert_allclose(policy(obs), jax_act, atol=1e-5)
+
+        def act(o):
+            return jax.pure_callback(lambda x: policy(np.asarray(x)), jax.ShapeDtypeStruct((1,), jnp.float32), o,
+                                     vmap_method="broadcast_all")
+
+        got, _ = evaluate(trainer.env, act, key, trainer.config.run.eval_episodes, trainer.config.episode_length)
+        np.testing.assert_allclose(got, expected, rtol=1e-3, atol=1e-2)
+    # The final evaluation in the metrics used the same parameters.
+    last = [r for r in _metrics(reference) if r["chunk"] == 2]
+    assert len(last) == 2 and all(np.isfinite(r["eval_return"]) for r in last)
