@@ -10,6 +10,11 @@ orbax writes each checkpoint to a temporary folder and renames it when
 complete, so a checkpoint that exists is whole; if the latest one is unreadable
 anyway (a truncated or corrupted file), ``restore`` warns and falls back to the
 previous one. The last ``keep`` [2] checkpoints are kept.
+
+The state is stored as a flat ``{leaf index: array}`` dict (with the leaves'
+key paths in the metadata) rather than as the pytree itself: MJX states hold
+zero-size arrays that orbax refuses to save, and those are rebuilt from the
+expected shapes on restore.
 """
 
 from __future__ import annotations
@@ -38,10 +43,10 @@ class Checkpointer:
 
     def save(self, chunks_done: int, state: Any, meta: dict) -> None:
         """Saves the state after ``chunks_done`` chunks (blocking; atomic by orbax's rename)."""
-        if jax.process_count() > 1:
-            state = jax.tree.map(lambda x: x, state)  # global arrays: orbax coordinates the hosts
+        flat, paths = _flatten(state)
         self.manager.save(chunks_done, args=ocp.args.Composite(
-            state=ocp.args.StandardSave(state), meta=ocp.args.JsonSave({**meta, "chunks_done": chunks_done})),
+            state=ocp.args.StandardSave(flat),
+            meta=ocp.args.JsonSave({**meta, "chunks_done": chunks_done, "leaf_paths": paths})),
             force=True)
         self.manager.wait_until_finished()
 
@@ -56,17 +61,22 @@ class Checkpointer:
         if not candidates:
             raise FileNotFoundError(f"no checkpoint in {self.directory}")
         abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, abstract_state)
+        flat_abstract, paths = _flatten(abstract)
         errors = []
         for s in candidates:
             try:
                 out = self.manager.restore(s, args=ocp.args.Composite(
-                    state=ocp.args.StandardRestore(abstract), meta=ocp.args.JsonRestore()))
-                _check_shapes(abstract, out.state)
+                    state=ocp.args.StandardRestore(flat_abstract), meta=ocp.args.JsonRestore()))
+                if out.meta.get("leaf_paths") != paths:
+                    raise ValueError("the checkpoint holds a state of another structure")
+                state = _unflatten(abstract, out.state)
                 if errors:
                     warnings.warn(f"checkpoint(s) {', '.join(e[0] for e in errors)} in {self.directory} could not be "
                                   f"read ({errors[0][1]}); resumed from the one after {s} chunks instead",
                                   RuntimeWarning, stacklevel=2)
-                return out.state, dict(out.meta)
+                meta = dict(out.meta)
+                meta.pop("leaf_paths")
+                return state, meta
             except Exception as err:  # noqa: BLE001 - any failure to read means: try the previous one
                 errors.append((str(s), f"{type(err).__name__}: {str(err)[:200]}"))
         raise FileNotFoundError(f"no readable checkpoint in {self.directory}: " +
@@ -76,7 +86,22 @@ class Checkpointer:
         self.manager.close()
 
 
-def _check_shapes(abstract, state) -> None:
-    for a, b in zip(jax.tree.leaves(abstract), jax.tree.leaves(state)):
-        if tuple(a.shape) != tuple(np.shape(b)):
-            raise ValueError(f"checkpoint array of shape {np.shape(b)} where {a.shape} was expected")
+def _flatten(tree) -> tuple[dict, list[str]]:
+    """{zero-padded leaf index: leaf} without zero-size leaves, and every leaf's key path."""
+    leaves = jax.tree_util.tree_flatten_with_path(tree)[0]
+    flat = {f"{i:05d}": x for i, (_, x) in enumerate(leaves) if int(np.prod(np.shape(x))) > 0}
+    return flat, [jax.tree_util.keystr(path) for path, _ in leaves]
+
+
+def _unflatten(abstract, flat: dict):
+    leaves, treedef = jax.tree_util.tree_flatten(abstract)
+    out = []
+    for i, a in enumerate(leaves):
+        if int(np.prod(a.shape)) == 0:
+            out.append(jax.numpy.zeros(a.shape, a.dtype))
+            continue
+        x = flat[f"{i:05d}"]
+        if tuple(np.shape(x)) != tuple(a.shape):
+            raise ValueError(f"checkpoint array of shape {np.shape(x)} where {a.shape} was expected")
+        out.append(x)
+    return jax.tree_util.tree_unflatten(treedef, out)

@@ -181,3 +181,18 @@ def test_exported_policy_reproduces_the_training_evaluation(reference):
     # The final evaluation in the metrics used the same parameters.
     last = [r for r in _metrics(reference) if r["chunk"] == 2]
     assert len(last) == 2 and all(np.isfinite(r["eval_return"]) for r in last)
+
+
+def test_checkpoint_round_trips_mjx_states_with_zero_size_arrays(tmp_path):
+    import envs
+
+    env = envs.make("inverted_double_pendulum")
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), 2))
+    assert any(np.size(x) == 0 for x in jax.tree.leaves(state))   # e.g. mjx.Data.act
+    ck = Checkpointer(str(tmp_path / "ck"))
+    ck.save(1, state, {"note": "mjx"})
+    restored, meta = ck.restore(jax.eval_shape(lambda: state))
+    ck.close()
+    assert meta["note"] == "mjx" and meta["chunks_done"] == 1
+    for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(restored)):
+        np.testing.assert_array_equal(a, b)

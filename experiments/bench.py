@@ -1,0 +1,267 @@
+"""Where every second goes: whole training vs environment stepping alone vs DDPG updates alone.
+
+    python -m experiments.bench                       # the default grid (tens of minutes on 2 CPU cores)
+    python -m experiments.bench --envs pendulum --seeds 1,8 --repeats 5
+    python -m experiments.bench --quick               # pendulum only, 1 and 8 seeds
+
+For every (task, method, preset, seeds) it runs a fresh subprocess (so peak
+memory and compile caches are its own) that measures, in one process:
+
+* compile time of the training program (``lower().compile()``), separately;
+* whole training (``cycles`` scanned cycles, vmapped over seeds; no evaluation):
+  median over ``--repeats`` timed calls after one warm call -> env steps/s;
+* the two parts alone, with the same step and update counts and the same seed
+  batch: environment stepping alone (a scan of the same number of env steps,
+  uniform random actions, same wrappers), and the same number of DDPG updates
+  alone (minibatches from the filled buffer; Meta also counts its look-ahead
+  updates);
+* the **overhead ratio** = full training time / (env-alone + updates-alone);
+* one evaluation (``eval_episodes`` episodes) separately: its cost is not in
+  the training numbers;
+* peak RSS of the subprocess, its growth over the RSS after imports, and the
+  replay buffers' own bytes.
+
+The **seed-scaling ratio** (total throughput at 8 seeds / at 1 seed) is
+computed across rows. Results go to ``BENCHMARKS.md`` (table) and a JSON file
+(raw numbers, every repeat). Timings on shared machines vary: compare ratios
+measured in one run, never single timings across runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import time
+
+TARGETS = {"overhead": 1.2, "scaling_8": 2.5, "compile_s": 60.0, "rss_over_buffer": 2.0}
+
+
+def _rss_mib() -> float:
+    """Current resident set size (MiB) from /proc (Linux); peak from getrusage."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("VmRSS:"):
+                    return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return float("nan")
+
+
+def _peak_rss_mib() -> float:
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+
+def _timed(fn, args, repeats: int):
+    """Median wall time of ``fn(*args)`` over ``repeats`` calls after one warm call; all times."""
+    import jax
+
+    jax.block_until_ready(fn(*args))
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        times.append(time.perf_counter() - t)
+    return statistics.median(times), times
+
+
+def measure_one(spec: dict) -> dict:
+    """All measurements for one configuration, in this process."""
+    import jax
+    import jax.numpy as jnp
+
+    from metapg_jax import replay
+    from metapg_jax.config import make_config
+    from metapg_jax.rollout import rollout
+    from metapg_jax.train import make_train, seed_keys, train_updates
+
+    rss_base = _rss_mib()
+    overrides = dict(spec.get("overrides", {}))
+    cfg = make_config(spec["env"], spec["method"], spec["preset"], overrides=overrides)
+    trainer = make_train(cfg)
+    seeds, repeats = spec["seeds"], spec["repeats"]
+    cycles = max(1, spec["target_steps"] // cfg.steps_per_cycle)
+    keys = seed_keys(0, seeds)
+    updates_per_cycle = cfg.run.train_steps + (
+        (cfg.meta.lookahead_steps or cfg.run.train_steps) if cfg.run.method == "meta" else 0)
+
+    # -- whole training (cycles only) -------------------------------------------------------
+    def cycles_fn(state):
+        return jax.lax.scan(lambda s, _: trainer.cycle(s), state, None, length=cycles)
+
+    state = jax.jit(jax.vmap(trainer.init))(keys)
+    t = time.perf_counter()
+    full = jax.jit(jax.vmap(cycles_fn), donate_argnums=0).lower(state).compile()
+    compile_s = time.perf_counter() - t
+    # Warm-up: fill the buffer past the warm-up phase so every timed call does real updates.
+    while int(state.env_steps[0]) < max(cfg.run.warmup_steps, cfg.ddpg.batch_size):
+        state, _ = full(state)
+    state, _ = full(state)
+    times = []
+    for _ in range(repeats):
+        t = time.perf_counter()
+        state, m = full(state)
+        jax.block_until_ready(m)
+        times.append(time.perf_counter() - t)
+    full_s = statistics.median(times)
+    steps = seeds * cycles * cfg.steps_per_cycle
+
+    # -- environment stepping alone: same steps, same batch ------------------------------------
+    env = trainer.env
+
+    def random_policy(carry, obs, first, k):
+        return jax.random.uniform(k, (env.action_size,), jnp.float32, -1.0, 1.0), carry, None
+
+    def env_only(env_state, key):
+        def one_cycle(s, k):
+            s, _, tr, _, _ = rollout(env, random_policy, s, None, k, cfg.steps_per_cycle)
+            return s, tr.reward.sum()
+
+        return jax.lax.scan(one_cycle, env_state, jax.random.split(key, cycles))
+
+    env_fn = jax.jit(jax.vmap(env_only))
+    env_s, env_times = _timed(env_fn, (state.env_state, keys), repeats)
+
+    # -- the same number of DDPG updates alone, on the filled buffer ---------------------------
+    ddpg = trainer.ddpg
+
+    def updates_only(st, key):
+        sample = lambda k: replay.sample(st.buffer, k, cfg.ddpg.batch_size)
+        student, _, metrics = train_updates(ddpg, st.student, st.normalizer, sample, key,
+                                            cycles * updates_per_cycle)
+        return student, metrics
+
+    upd_fn = jax.jit(jax.vmap(updates_only))
+    upd_s, upd_times = _timed(upd_fn, (state, keys), repeats)
+
+    # -- one evaluation ---------------------------------------------------------------------------
+    eval_fn = jax.jit(jax.vmap(trainer.evaluate))
+    eval_s, eval_times = _timed(eval_fn, (state, keys), max(1, repeats // 2))
+
+    buffer_mib = seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20
+    peak = _peak_rss_mib()
+    return {
+        **{k: spec[k] for k in ("env", "method", "preset", "seeds")},
+        "backend": jax.default_backend(), "device": str(jax.devices()[0]),
+        "cycles": cycles, "steps_per_cycle": cfg.steps_per_cycle, "updates_per_cycle": updates_per_cycle,
+        "env_steps_measured": steps, "compile_s": compile_s,
+        "full_s": full_s, "full_times": times, "env_s": env_s, "env_times": env_times,
+        "updates_s": upd_s, "update_times": upd_times, "eval_s": eval_s, "eval_times": eval_times,
+        "eval_episodes": cfg.run.eval_episodes,
+        "steps_per_s_total": steps / full_s, "steps_per_s_per_seed": steps / full_s / seeds,
+        "env_alone_steps_per_s": steps / env_s, "updates_alone_per_s": seeds * cycles * updates_per_cycle / upd_s,
+        "overhead_ratio": full_s / (env_s + upd_s),
+        "buffer_mib": buffer_mib, "peak_rss_mib": peak, "rss_growth_mib": peak - rss_base,
+    }
+
+
+def _row_md(r: dict, scaling: float | None) -> str:
+    def f(x, fmt="{:,.0f}"):
+        return "–" if x is None else fmt.format(x)
+
+    return (f"| {r['env']} | {r['method']} | {r['preset']} | {r['seeds']} | {f(r['compile_s'], '{:.1f}')} | "
+            f"{f(r['steps_per_s_total'])} | {f(r['steps_per_s_per_seed'])} | {f(r['env_alone_steps_per_s'])} | "
+            f"{f(r['updates_alone_per_s'])} | {f(r['overhead_ratio'], '{:.2f}')} | {f(scaling, '{:.2f}')} | "
+            f"{f(r['eval_s'], '{:.2f}')} | {f(r['buffer_mib'])} | {f(r['rss_growth_mib'])} | "
+            f"{f(r['peak_rss_mib'])} |")
+
+
+def seed_scaling(rows: list[dict]) -> dict:
+    """Total throughput at n seeds / at 1 seed, per (env, method, preset)."""
+    base = {(r["env"], r["method"], r["preset"]): r["steps_per_s_total"] for r in rows if r["seeds"] == 1}
+    return {id(r): r["steps_per_s_total"] / base[(r["env"], r["method"], r["preset"])]
+            for r in rows if (r["env"], r["method"], r["preset"]) in base}
+
+
+def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
+    scaling = seed_scaling(rows)
+    lines = [
+        "# Benchmarks", "",
+        f"Written by `python -m experiments.bench` on {meta['date']} ({meta['machine']}; jax {meta['jax']}, "
+        f"backend {meta['backend']}; {meta['repeats']} timed repeats per number, medians). Raw numbers, every "
+        f"repeat: `{os.path.basename(meta['json'])}`.", "",
+        "Columns: steady-state env steps/s of whole training (cycles only, evaluation excluded) in total and per "
+        "seed; env stepping alone and DDPG updates alone with the same counts and seed batch; overhead = full / "
+        "(env alone + updates alone); scaling = total throughput / the 1-seed row's; one evaluation "
+        "(`eval_episodes` full episodes) in seconds; replay buffers' bytes; peak RSS growth over the process "
+        "after imports, and peak RSS.", "",
+        f"Targets: overhead <= {TARGETS['overhead']}, 8-seed scaling >= {TARGETS['scaling_8']}x, compile <= "
+        f"{TARGETS['compile_s']:.0f} s, peak memory <= {TARGETS['rss_over_buffer']}x the buffers' bytes.", "",
+        "| task | method | preset | seeds | compile s | steps/s total | steps/s per seed | env alone steps/s | "
+        "updates alone /s | overhead | scaling | eval s | buffers MiB | RSS growth MiB | peak RSS MiB |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    lines += [_row_md(r, scaling.get(id(r))) for r in rows]
+    open(path, "w").write("\n".join(lines) + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m experiments.bench", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--envs", default="pendulum,inverted_double_pendulum")
+    p.add_argument("--methods", default="ddpg,meta")
+    p.add_argument("--presets", default="paper,modern")
+    p.add_argument("--seeds", default="1,8,32")
+    p.add_argument("--repeats", type=int, default=3)
+    p.add_argument("--target-steps", type=int, default=None,
+                   help="env steps per seed per timed call (default: 3000 pendulum, 600 MuJoCo tasks)")
+    p.add_argument("--quick", action="store_true", help="pendulum only, seeds 1 and 8")
+    p.add_argument("--out", default="BENCHMARKS.md")
+    p.add_argument("--json", default="benchmarks.json")
+    p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
+    args = p.parse_args(argv)
+    if args.one:
+        print("BENCH_RESULT " + json.dumps(measure_one(json.loads(args.one))), flush=True)
+        return 0
+    if args.quick:
+        args.envs, args.seeds = "pendulum", "1,8"
+    envs_ = args.envs.split(",")
+    specs = [{"env": e, "method": m, "preset": pr, "seeds": int(s), "repeats": args.repeats,
+              "target_steps": args.target_steps or (3000 if e == "pendulum" else 600)}
+             for e in envs_ for m in args.methods.split(",") for pr in args.presets.split(",")
+             for s in args.seeds.split(",")]
+    for s in specs:
+        if s["seeds"] <= 0 or s["repeats"] <= 0:
+            print("error: --seeds and --repeats must be positive", file=sys.stderr)
+            return 2
+    rows = []
+    import jax
+
+    meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
+            "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
+            "repeats": args.repeats, "json": args.json}
+    for i, spec in enumerate(specs):
+        label = f"{spec['env']} {spec['method']} {spec['preset']} x{spec['seeds']}"
+        print(f"[{i + 1}/{len(specs)}] {label} ...", flush=True)
+        res = subprocess.run([sys.executable, "-m", "experiments.bench", "--one", json.dumps(spec)],
+                             capture_output=True, text=True)
+        line = [ln for ln in res.stdout.splitlines() if ln.startswith("BENCH_RESULT ")]
+        if res.returncode != 0 or not line:
+            print(f"  failed: {res.stderr[-2000:]}", file=sys.stderr)
+            continue
+        r = json.loads(line[0][len("BENCH_RESULT "):])
+        rows.append(r)
+        print(f"  compile {r['compile_s']:.1f} s | {r['steps_per_s_total']:,.0f} steps/s total | env alone "
+              f"{r['env_alone_steps_per_s']:,.0f} | updates alone {r['updates_alone_per_s']:,.0f}/s | overhead "
+              f"{r['overhead_ratio']:.2f} | eval {r['eval_s']:.2f} s | RSS +{r['rss_growth_mib']:,.0f} MiB "
+              f"(buffers {r['buffer_mib']:,.0f})", flush=True)
+        with open(args.json, "w") as f:  # rewritten after every row: a long benchmark never loses rows
+            json.dump({"meta": meta, "rows": rows}, f, indent=1)
+        write_markdown(rows, args.out, meta)
+    scaling = seed_scaling(rows)
+    for r in rows:
+        if r["seeds"] == 8 and id(r) in scaling:
+            print(f"{r['env']} {r['method']} {r['preset']}: 8-seed scaling {scaling[id(r)]:.2f}x")
+    print(f"wrote {args.out} and {args.json}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,216 @@
+"""Run (or resume) the paper's grid of task x method x seeds, then rebuild every artefact.
+
+    python -m experiments.reproduce                                   # the whole grid, paper preset, 8 seeds
+    python -m experiments.reproduce --tasks pendulum,reacher --methods meta-independent,ddpg-paramnoise
+    python -m experiments.reproduce --preset modern                  # results/modern/
+    python -m experiments.reproduce --artefacts-only --embedding pca  # no training, rebuild from what is stored
+
+Each grid cell is one ``experiments.run.main`` call writing
+``<runs-dir>/<preset>/<task>/<method>``, run one after another in the paper's
+task order (InvertedDoublePendulum first). A cell whose ``summary.json``
+exists is skipped; one with a checkpoint but no summary is resumed (with the
+same explicit options, so ``--resume`` checks they match); one with neither
+(killed before its first checkpoint) is started again. Next to each cell's
+run outputs, ``reproduce.json`` records the commit, the machine, the command
+and the accumulated wall time of this script's calls for that cell.
+
+Then ``experiments.artefacts.build_all`` rebuilds Table 2, the learning
+curves, steps-to-threshold, the teacher-design and state-visitation figures,
+``README.md`` and ``manifest.json`` under ``--results-dir`` (``<results-dir>/
+<preset>`` for a preset other than ``paper``) from whatever is stored.
+
+Exit status: 0 every requested cell finished; 2 bad input; 3 some cell stopped
+on non-finite parameters (the others still ran); 130 interrupted (artefacts
+are still rebuilt from what is stored; run the same command again to resume).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+from experiments import artefacts
+
+RUN_ORDER = ("inverted_double_pendulum", "pendulum", "inverted_pendulum", "reacher", "hopper", "halfcheetah")
+DEFAULT_SEEDS = 8
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="python -m experiments.reproduce",
+        description="Run or resume the paper's task x method grid (skipping finished cells), then rebuild "
+                    "Table 2 and the figures from the stored results.")
+    p.add_argument("--tasks", default=",".join(RUN_ORDER),
+                   help=f"comma-separated tasks, run in this order (default: {','.join(RUN_ORDER)})")
+    p.add_argument("--methods", default=",".join(artefacts.METHODS),
+                   help=f"comma-separated methods: {', '.join(artefacts.METHODS)} (default: all)")
+    p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, help=f"seeds per cell (default {DEFAULT_SEEDS})")
+    p.add_argument("--seed", type=int, default=0, help="base PRNG seed of every cell (default 0)")
+    p.add_argument("--steps", type=int, default=None,
+                   help="env steps per seed for every cell (default: each task's paper budget)")
+    p.add_argument("--preset", default="paper", choices=("paper", "modern"),
+                   help="'paper' (default; results in --results-dir) or 'modern' (results in <results-dir>/modern)")
+    p.add_argument("--source", default="gymnasium", help="MuJoCo models: gymnasium (default) or brax")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
+                   help="config override passed to every cell's experiments.run (e.g. tiny test settings)")
+    p.add_argument("--runs-dir", default="runs/reproduce", help="grid root (default runs/reproduce)")
+    p.add_argument("--results-dir", default="results", help="artefact folder (default results)")
+    p.add_argument("--artefacts-only", action="store_true", help="train nothing; rebuild the artefacts only")
+    p.add_argument("--embedding", default="tsne", choices=("tsne", "pca"),
+                   help="2-D embedding of the state-visitation figure (pca is fast)")
+    p.add_argument("--visitation-task", default=None,
+                   help="task of the visitation figure (default inverted_double_pendulum, else the first with runs)")
+    p.add_argument("--no-plot", action="store_true", help="skip each run's own PNGs (the artefacts are still drawn)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--dry-run", action="store_true", help="print what would be run, skipped or resumed; do nothing")
+    return p
+
+
+def parse_list(text: str, valid, what: str) -> list[str]:
+    items = [t.strip() for t in text.split(",") if t.strip()]
+    bad = [t for t in items if t not in valid]
+    if bad or not items:
+        raise ValueError(f"unknown {what} {', '.join(map(repr, bad)) or '(none given)'}; valid: {', '.join(valid)}")
+    if len(set(items)) != len(items):
+        raise ValueError(f"--{what}s lists a {what} twice")
+    return items
+
+
+def cell_dir(runs_dir: str, preset: str, task: str, method: str) -> str:
+    return os.path.join(runs_dir, preset, task, method)
+
+
+def cell_state(path: str) -> str:
+    """'done' (summary.json), 'resume' (a checkpoint, no summary), 'restart' (a folder without a checkpoint)
+    or 'new'."""
+    if os.path.exists(os.path.join(path, "summary.json")):
+        return "done"
+    ckpt = os.path.join(path, "checkpoints")
+    if os.path.isdir(ckpt) and any(name.isdigit() for name in os.listdir(ckpt)):
+        return "resume"
+    if os.path.isdir(path) and os.listdir(path):
+        return "restart"
+    return "new"
+
+
+def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state: str) -> list[str]:
+    """The explicit ``experiments.run`` options of a cell (the same for a fresh start and a resume)."""
+    argv = [f"--env={task}", *artefacts.METHODS[method], f"--preset={args.preset}", f"--seeds={args.seeds}",
+            f"--seed={args.seed}", f"--source={args.source}"]
+    if args.steps is not None:
+        argv.append(f"--steps={args.steps}")
+    for item in args.overrides:
+        argv += ["--set", item]
+    if args.no_plot:
+        argv.append("--no-plot")
+    if args.quiet:
+        argv.append("--quiet")
+    if state == "resume":
+        argv += ["--resume", out]
+    else:
+        argv += ["--out", out] + (["--overwrite"] if state == "restart" else [])
+    return argv
+
+
+def _write_cell_record(out: str, argv: list[str], status: int, seconds: float) -> None:
+    """``reproduce.json`` in the cell: commit, machine, command, status and accumulated wall time."""
+    from metapg_jax import reporting
+
+    path = os.path.join(out, "reproduce.json")
+    old = {}
+    if os.path.exists(path):
+        with open(path) as f:
+            old = json.load(f)
+    calls = old.get("calls", []) + [{"argv": argv, "status": status, "wall_seconds": round(seconds, 2),
+                                     "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}]
+    reporting.write_json_atomic(path, {
+        "commit": artefacts.git_commit(), "dirty": artefacts.git_dirty(), "machine": artefacts.machine(),
+        "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 2), "calls": calls})
+
+
+def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
+    """Runs the grid cell by cell; returns (exit status, {cell: what happened})."""
+    from experiments import run as run_lib
+
+    status, report = 0, {}
+    cells = [(t, m) for t in tasks for m in methods]
+    for i, (task, method) in enumerate(cells, 1):
+        out = cell_dir(args.runs_dir, args.preset, task, method)
+        state = cell_state(out)
+        tag = f"[{i}/{len(cells)}] {args.preset}/{task}/{method}"
+        if state == "done":
+            with open(os.path.join(out, "summary.json")) as f:
+                s = json.load(f)
+            note = "" if args.steps is None or s.get("env_steps") == args.steps else \
+                f" (stored budget {s.get('env_steps'):,} differs from --steps={args.steps:,}; delete it to rerun)"
+            print(f"{tag}: done, skipped: final eval return {s['final_eval_return_mean']:.1f} ± "
+                  f"{s['final_eval_return_std']:.1f} over {s['num_seeds']} seeds, {s['env_steps']:,} steps{note}",
+                  flush=True)
+            report[(task, method)] = "skipped"
+            continue
+        argv = cell_argv(args, task, method, out, state)
+        verb = {"resume": "resuming", "restart": "restarting (no checkpoint stored)", "new": "running"}[state]
+        print(f"{tag}: {verb}: python -m experiments.run {' '.join(argv)}", flush=True)
+        if args.dry_run:
+            report[(task, method)] = f"would {state}"
+            continue
+        t0 = time.perf_counter()
+        code = run_lib.main(argv)
+        if os.path.isdir(out):
+            _write_cell_record(out, argv, code, time.perf_counter() - t0)
+        report[(task, method)] = {0: "ran" if state != "resume" else "resumed"}.get(code, f"exit {code}")
+        if code == 130:
+            print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
+            return 130, report
+        if code == 2:
+            print(f"{tag}: bad options (exit 2); stopping the grid", file=sys.stderr, flush=True)
+            return 2, report
+        if code:
+            print(f"{tag}: stopped with exit {code}; continuing with the next cell", file=sys.stderr, flush=True)
+            status = status or code
+    return status, report
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        tasks = parse_list(args.tasks, artefacts.TASKS, "task")
+        methods = parse_list(args.methods, tuple(artefacts.METHODS), "method")
+        if args.seeds <= 0:
+            raise ValueError(f"--seeds must be positive, got {args.seeds}")
+        if args.steps is not None and args.steps <= 0:
+            raise ValueError(f"--steps must be positive, got {args.steps}")
+        for item in args.overrides:
+            if "=" not in item:
+                raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    t0 = time.perf_counter()
+    status, report = 0, {}
+    if not args.artefacts_only:
+        status, report = run_grid(args, tasks, methods)
+        counts = {}
+        for v in report.values():
+            counts[v] = counts.get(v, 0) + 1
+        print("grid: " + (", ".join(f"{n} {k}" for k, n in sorted(counts.items())) or "nothing to do"), flush=True)
+    if args.dry_run:
+        return status
+    manifest = artefacts.build_all(
+        args.runs_dir, args.results_dir, args.preset, embedding=args.embedding,
+        visitation_task=args.visitation_task,
+        extra_provenance={"reproduce_argv": sys.argv[1:] if argv is None else list(argv),
+                          "requested": {"tasks": tasks, "methods": methods, "seeds": args.seeds, "seed": args.seed,
+                                        "steps": args.steps, "overrides": args.overrides},
+                          "grid_wall_seconds": round(time.perf_counter() - t0, 2)})
+    out = artefacts.results_dir_for(args.results_dir, args.preset)
+    print(f"artefacts: {len(manifest['files'])} files in {out} ({len(manifest['cells'])} stored cells, "
+          f"{len(manifest['not_run'])} not run): {', '.join(manifest['files'])}", flush=True)
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
