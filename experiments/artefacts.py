@@ -341,7 +341,9 @@ def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str]) -> 
                 "ci95": [mean - half, mean + half] if math.isfinite(half) else None,
                 "n": int(final.size), "budget": r.budget, "env_steps": r.env_steps_done,
                 "final_evaluations": num_final_evaluations(r.steps.size), "evaluations": int(r.steps.size),
-                "base_seed": r.run_args.get("seed"), "per_seed": [float(v) for v in final]}
+                "base_seed": r.run_args.get("seed"), "per_seed": [float(v) for v in final],
+                "run_commit": r.provenance.get("commit"), "backend": r.info.get("backend"),
+                "wall_seconds": cell_provenance(r)["wall_seconds"], "run_dir": r.path}
         a, b = row["methods"].get(META, {}), row["methods"].get(BASELINE, {})
         if a.get("status") == "done" and b.get("status") == "done":
             t, p = welch_test(a["per_seed"], b["per_seed"])
@@ -379,7 +381,8 @@ def _joined(values: dict) -> str:
     return "; ".join(f"{METHOD_NAMES.get(m, m)}: {v:,}" for m, v in values.items())
 
 
-def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str) -> list[str]:
+def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str,
+                 build_commit: str | None = None) -> list[str]:
     """table2.md, table2.json and table2_per_seed.csv from ``table2_rows``; returns the paths."""
     os.makedirs(out_dir, exist_ok=True)
     names = [METHOD_NAMES.get(m, m) for m in methods]
@@ -393,8 +396,8 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     for row in rows:
         cells = [_cell_text(row["methods"][m]) for m in methods]
         paper = row["paper"]
-        pm = f"{fmt(paper['meta'][0])} ± {fmt(paper['meta'][1])}" if paper else "—"
-        pd = f"{fmt(paper['ddpg'][0])} ± {fmt(paper['ddpg'][1])}" if paper else "—"
+        pm = f"{paper['meta'][0]:,g} ± {paper['meta'][1]:,g}" if paper else "—"  # as printed in the paper
+        pd = f"{paper['ddpg'][0]:,g} ± {paper['ddpg'][1]:,g}" if paper else "—"
         done = {m: c for m, c in row["methods"].items() if c["status"] == "done"}
         budget = _joined({m: c["budget"] for m, c in done.items()})
         seeds = _joined({m: c["n"] for m, c in done.items()})
@@ -417,8 +420,10 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
                    "paper_seeds": PAPER_SEEDS, "rows": rows}, f, indent=2, default=_json_default)
     with open(paths[2], "w", newline="") as f:
         w = csv.writer(f)
+        # seed_index i is the run's seed i: PRNG key fold_in(PRNGKey(base_seed), i).
         w.writerow(["task", "method", "seed_index", "final_return", "final_evaluations", "evaluations",
-                    "env_steps", "budget", "base_seed"])
+                    "env_steps", "budget", "base_seed", "run_commit", "backend", "run_wall_seconds", "run_dir",
+                    "build_commit"])
         for row in rows:
             for m in methods:
                 c = row["methods"][m]
@@ -426,7 +431,9 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
                     continue
                 for i, v in enumerate(c["per_seed"]):
                     w.writerow([row["task"], m, i, repr(v), c["final_evaluations"], c["evaluations"],
-                                c["env_steps"], c["budget"], c["base_seed"]])
+                                c["env_steps"], c["budget"], c["base_seed"], c["run_commit"] or "", c["backend"] or "",
+                                "" if c["wall_seconds"] is None else c["wall_seconds"], c["run_dir"],
+                                build_commit or ""])
     return paths
 
 
@@ -536,15 +543,16 @@ def steps_to_threshold_rows(results: dict, tasks: Sequence[str], methods: Sequen
     return rows
 
 
-def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset: str) -> list[str]:
+def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset: str,
+                             build_commit: str | None = None) -> list[str]:
     paths = [os.path.join(out_dir, "steps_to_threshold.csv"), os.path.join(out_dir, "steps_to_threshold.md")]
     keys = ["task", "method", "threshold", "baseline_step", "step", "ratio", "seeds", "env_steps_run", "complete",
             "baseline_complete"]
     with open(paths[0], "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=keys)
+        w = csv.DictWriter(f, fieldnames=keys + ["build_commit"])
         w.writeheader()
         for row in rows:
-            w.writerow({k: ("" if row[k] is None else row[k]) for k in keys})
+            w.writerow({**{k: ("" if row[k] is None else row[k]) for k in keys}, "build_commit": build_commit or ""})
     md = [f"# Samples to reach the DDPG baseline's best ({preset} preset)", "",
           "Threshold: the best value over evaluations of the DDPG (param noise) seed-mean evaluation-return curve. "
           "`step`: the first evaluation's env step at which a method's seed-mean curve reaches it; "
@@ -608,9 +616,13 @@ def embed_2d(x: np.ndarray, method: str = "tsne", seed: int = 0) -> np.ndarray:
         out = PCA(n_components=min(2, z.shape[1]), random_state=seed).fit_transform(z)
     elif method == "tsne":
         from sklearn.manifold import TSNE
+        from threadpoolctl import threadpool_limits
 
-        out = TSNE(n_components=2, init="pca", perplexity=min(30.0, max(2.0, (len(z) - 1) / 3)),
-                   random_state=seed).fit_transform(z)
+        # One OpenMP thread: sklearn's Barnes-Hut t-SNE on a busy machine (e.g. next to a training run)
+        # slows down ~100x from thread contention; single-threaded it takes ~10 s for 3000 points.
+        with threadpool_limits(limits=1):
+            out = TSNE(n_components=2, init="pca", perplexity=min(30.0, max(2.0, (len(z) - 1) / 3)),
+                       random_state=seed).fit_transform(z)
     else:
         raise ValueError(f"unknown embedding {method!r}; use tsne or pca")
     if out.shape[1] < 2:
@@ -704,9 +716,10 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
         build.update(extra_provenance)
     footer = provenance_footer(build, results.values())
     rows = table2_rows(results, tasks, methods)
-    files = write_table2(rows, methods, out_dir, footer, preset)
+    files = write_table2(rows, methods, out_dir, footer, preset, build["commit"])
     files += write_curves(results, tasks, methods, out_dir, build, preset)
-    files += write_steps_to_threshold(steps_to_threshold_rows(results, tasks, methods), out_dir, footer, preset)
+    files += write_steps_to_threshold(steps_to_threshold_rows(results, tasks, methods), out_dir, footer, preset,
+                                      build["commit"])
     files += write_teacher_designs(results, out_dir, build, preset)
     files += write_visitation(results, out_dir, build, visitation_task, embedding, points_per_panel)
     manifest = {"build": build, "files": [os.path.relpath(p, out_dir) for p in files] + ["README.md"],

@@ -134,7 +134,7 @@ def measure_one(spec: dict) -> dict:
 
     def updates_only(st, key):
         sample = lambda k: replay.sample(st.buffer, k, cfg.ddpg.batch_size)
-        student, _, metrics = train_updates(ddpg, st.student, st.normalizer, sample, key,
+        student, metrics = train_updates(ddpg, st.student, st.normalizer, sample, key,
                                             cycles * updates_per_cycle)
         return student, metrics
 

@@ -158,7 +158,10 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
             report[(task, method)] = f"would {state}"
             continue
         t0 = time.perf_counter()
-        code = run_lib.main(argv)
+        try:
+            code = run_lib.main(argv)
+        except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed (e.g. while compiling)
+            code = 130
         if os.path.isdir(out):
             _write_cell_record(out, argv, code, time.perf_counter() - t0)
         report[(task, method)] = {0: "ran" if state != "resume" else "resumed"}.get(code, f"exit {code}")

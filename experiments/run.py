@@ -250,7 +250,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
             reporting.write_json_atomic(os.path.join(out, "config.json"), {
                 "config": config_lib.to_dict(cfg), "run_args": a,
                 "jax_version": jax.__version__, "backend": jax.default_backend(),
-                "devices": [str(d) for d in jax.devices()]})
+                "devices": [str(d) for d in jax.devices()], **reporting.provenance()})
 
     trainer = make_train(cfg)
     keys = seed_keys(seed, num_seeds)

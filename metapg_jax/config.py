@@ -162,18 +162,23 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
         run = RunConfig(method=method, total_steps=total, rollout_steps=1, train_steps=1, warmup_steps=5000)
         meta = dataclasses.replace(meta, hidden=(256, 256), layer_norm=False)
         if method == "meta":
-            # One student update per stored step, one look-ahead update per D0 step; no random
-            # warm-up (the teacher is the exploration from the first step).
-            cycle = meta.explore_steps + meta.eval_steps * meta.eval_envs
-            run = dataclasses.replace(run, train_steps=cycle, warmup_steps=0)
-            meta = dataclasses.replace(meta, lookahead_steps=meta.explore_steps)
+            # No random warm-up: the teacher is the exploration from the first step.
+            run = dataclasses.replace(run, warmup_steps=0)
         cfg = Config(env=EnvConfig(env, source), run=run, ddpg=ddpg,
                      noise=NoiseConfig(kind="normal", stddev=0.1), meta=meta, preset=preset)
     if noise is not None:
         cfg = dataclasses.replace(cfg, noise=dataclasses.replace(cfg.noise, kind=noise))
+    overrides = overrides or {}
     if overrides:
         cfg = override(cfg, overrides)
-    if "run.eval_every" not in (overrides or {}):
+    if preset == "modern" and method == "meta":
+        # One student update per stored step and one look-ahead update per D0 step, derived
+        # after the overrides so a changed schedule keeps the ratio (unless set explicitly).
+        if "run.train_steps" not in overrides:
+            cfg = dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, train_steps=cfg.steps_per_cycle))
+        if "meta.lookahead_steps" not in overrides:
+            cfg = dataclasses.replace(cfg, meta=dataclasses.replace(cfg.meta, lookahead_steps=cfg.meta.explore_steps))
+    if "run.eval_every" not in overrides:
         target = min(spec.eval_every, max(cfg.steps_per_cycle, cfg.run.total_steps // 10))
         every = default_eval_every(cfg.run.total_steps, cfg.steps_per_cycle, target)
         cfg = dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, eval_every=every))

@@ -100,8 +100,8 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
         idx = jax.random.randint(k, (cfg.ddpg.batch_size,), 0, m.explore_steps)
         return jax.tree.map(lambda x: x[idx], d0)
 
-    lookahead, _, look_metrics = train_updates(ddpg, student, normalizer, sample_d0, k_look,
-                                               m.lookahead_steps or cfg.run.train_steps)
+    lookahead, look_metrics = train_updates(ddpg, student, normalizer, sample_d0, k_look,
+                                            m.lookahead_steps or cfg.run.train_steps)
 
     # 3. D1 from pi' and R_hat(pi').
     d1, r_hat_lookahead = student_rollout(trainer, lookahead.actor, normalizer, k_d1)

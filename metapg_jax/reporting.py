@@ -19,6 +19,25 @@ from typing import Any, Iterable
 import numpy as np
 
 
+def provenance() -> dict:
+    """The commit (and whether the tree had changes) and the machine, recorded with every run."""
+    import platform
+    import subprocess
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+    def git(*args):
+        try:
+            return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, timeout=10).stdout.strip()
+        except (OSError, subprocess.SubprocessError):
+            return ""
+
+    return {"commit": git("rev-parse", "HEAD") or "unknown",
+            "dirty": bool(git("status", "--porcelain", "--untracked-files=no")),
+            "machine": {"platform": platform.platform(), "processor": platform.machine(),
+                        "cpu_count": os.cpu_count(), "python": platform.python_version()}}
+
+
 def write_json_atomic(path: str, obj: Any) -> None:
     """Writes JSON to a temporary file in the same folder, then renames it over ``path``."""
     folder = os.path.dirname(os.path.abspath(path))

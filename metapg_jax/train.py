@@ -75,26 +75,14 @@ def flatten_time(tree):
     return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), tree)
 
 
-def train_updates(ddpg: DDPG, student: StudentState, normalizer, sample, key: jax.Array, num: int,
-                  adapt=None, adapt_carry=None, updates0=None):
-    """``num`` DDPG updates with minibatches from ``sample(key)``; returns the mean metrics.
+def train_updates(ddpg: DDPG, student: StudentState, normalizer, sample, key: jax.Array, num: int):
+    """``num`` DDPG updates with minibatches from ``sample(key)``; returns the mean metrics."""
 
-    ``adapt(carry, student, batch, key)`` (optional) runs before an update whenever the
-    global update count is a multiple of the adaptation interval (parameter noise).
-    """
+    def step(st, k):
+        return ddpg.update(st, normalizer, sample(k))
 
-    def step(c, k):
-        st, ac, i = c
-        k_batch, k_adapt = jax.random.split(k)
-        batch = sample(k_batch)
-        if adapt is not None:
-            ac = adapt(ac, st, batch, k_adapt, i)
-        st, metrics = ddpg.update(st, normalizer, batch)
-        return (st, ac, i + 1), metrics
-
-    i0 = jnp.zeros((), jnp.int32) if updates0 is None else updates0
-    (student, adapt_carry, _), metrics = jax.lax.scan(step, (student, adapt_carry, i0), jax.random.split(key, num))
-    return student, adapt_carry, jax.tree.map(jnp.mean, metrics)
+    student, metrics = jax.lax.scan(step, student, jax.random.split(key, num))
+    return student, jax.tree.map(jnp.mean, metrics)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -166,31 +154,39 @@ class Trainer:
                                          visits=visits_lib.record(state.visits, explore_obs=transitions.obs)),
                            transitions)
 
-        def adapt(noise_state, student, batch, k, i):
-            due = (i % cfg.noise.adapt_every) == 0
-            obs = ddpg.normalize(state.normalizer, batch.obs)
-            return jax.lax.cond(
-                due, lambda: noise_lib.adapt(cfg.noise, noise_state, ddpg.actor_apply, student.actor, obs, k),
-                lambda: noise_state)
-
-        state, train_metrics = self.student_updates(
-            state, k_train, cfg.run.train_steps,
-            adapt=adapt if cfg.noise.kind == "adaptive-param" else None)
+        state, train_metrics = self.student_updates(state, k_train, cfg.run.train_steps)
         ret_mean, n_eps = completed_episode_mean(stats)
         metrics = {**train_metrics, "train_return": ret_mean, "train_episodes": n_eps,
                    "param_noise_stddev": state.explorer.stddev, "param_noise_distance": state.explorer.distance}
         return state, metrics
 
-    def student_updates(self, state: TrainState, key: jax.Array, num: int, adapt=None):
-        """``num`` updates of the student on replay minibatches (skipped during warm-up)."""
+    def student_updates(self, state: TrainState, key: jax.Array, num: int):
+        """``num`` updates of the student on replay minibatches (skipped during warm-up).
+
+        With adaptive parameter noise, the noise stddev is adapted before updates
+        0, adapt_every, 2 adapt_every, ... of the block, as baselines does within
+        each cycle (``t_train % param_noise_adaption_interval == 0``). The
+        positions are static, so no per-update conditional is needed.
+        """
         ddpg, cfg = self.ddpg, self.config
+        adaptive = cfg.run.method == "ddpg" and cfg.noise.kind == "adaptive-param"
+        block = cfg.noise.adapt_every if adaptive else num
+        sample = lambda k: replay.sample(state.buffer, k, cfg.ddpg.batch_size)
 
         def run(_):
-            sample = lambda k: replay.sample(state.buffer, k, cfg.ddpg.batch_size)
-            student, explorer, metrics = train_updates(
-                ddpg, state.student, state.normalizer, sample, key, num,
-                adapt=adapt, adapt_carry=state.explorer, updates0=state.updates)
-            return student, explorer, state.updates + num, metrics
+            student, explorer = state.student, state.explorer
+            metrics, weights = [], []
+            for start in range(0, num, block):
+                n = min(block, num - start)
+                k_upd, k_adapt, k_batch = jax.random.split(jax.random.fold_in(key, start), 3)
+                if adaptive:
+                    obs = ddpg.normalize(state.normalizer, sample(k_batch).obs)
+                    explorer = noise_lib.adapt(cfg.noise, explorer, ddpg.actor_apply, student.actor, obs, k_adapt)
+                student, m = train_updates(ddpg, student, state.normalizer, sample, k_upd, n)
+                metrics.append(m)
+                weights.append(n / num)
+            mean = jax.tree.map(lambda *xs: sum(w * x for w, x in zip(weights, xs)), *metrics)
+            return student, explorer, state.updates + num, mean
 
         def skip(_):
             nan = jnp.full((), jnp.nan, jnp.float32)

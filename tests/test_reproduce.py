@@ -1,0 +1,283 @@
+"""experiments.artefacts / experiments.reproduce / the teacher-design notebook.
+
+* statistics helpers against formulas written out here;
+* the artefact builders on fabricated run folders (numbers, "not run" and "incomplete" cells, figures);
+* ``experiments.reproduce`` end to end on a tiny pendulum grid (run, skip what is done, resume);
+* the notebook, tiny mode, executed top to bottom with nbclient.
+"""
+
+import csv
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from experiments import artefacts, reproduce
+from metapg_jax import config as config_lib
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TINY = ["--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
+        "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=64", "--set", "ddpg.batch_size=16"]
+
+
+# ---------------------------------------------------------------------------------------------- statistics
+
+def test_final_returns_use_the_last_tenth_at_least_one():
+    assert [artefacts.num_final_evaluations(t) for t in (1, 5, 9, 10, 19, 20, 100, 167)] == [1, 1, 1, 1, 1, 2, 10, 16]
+    values = np.arange(2 * 20, dtype=float).reshape(2, 20)
+    np.testing.assert_allclose(artefacts.final_returns(values), [(18 + 19) / 2, (38 + 39) / 2])
+    np.testing.assert_allclose(artefacts.final_returns(values[:, :3]), [2, 22])
+
+
+def test_mean_std_t_interval_and_welch_match_the_formulas():
+    a = np.array([1.0, 2.5, 4.0, 3.5])
+    b = np.array([0.5, 1.0, 0.0])
+    mean, std = artefacts.mean_std(a)
+    assert mean == pytest.approx(a.sum() / 4)
+    assert std == pytest.approx(math.sqrt(((a - a.mean()) ** 2).sum() / 3))
+    _, half = artefacts.t_interval(a)
+    assert half == pytest.approx(stats.t.ppf(0.975, 3) * std / math.sqrt(4))
+    # Welch: t = (ma - mb) / sqrt(va/na + vb/nb), Welch-Satterthwaite df, two-sided p.
+    va, vb = a.var(ddof=1) / 4, b.var(ddof=1) / 3
+    t = (a.mean() - b.mean()) / math.sqrt(va + vb)
+    df = (va + vb) ** 2 / (va ** 2 / 3 + vb ** 2 / 2)
+    got_t, got_p = artefacts.welch_test(a, b)
+    assert got_t == pytest.approx(t) and got_p == pytest.approx(2 * stats.t.sf(abs(t), df))
+    assert all(math.isnan(v) for v in artefacts.welch_test(a, b[:1]))
+    assert math.isnan(artefacts.t_interval([3.0])[1]) and math.isnan(artefacts.mean_std([3.0])[1])
+
+
+def test_first_step_reaching():
+    steps = np.array([100, 200, 300, 400])
+    assert artefacts.first_step_reaching(steps, np.array([0.0, np.nan, 5.0, 7.0]), 5.0) == 300
+    assert artefacts.first_step_reaching(steps, np.array([0.0, 1.0, 2.0, 3.0]), 5.0) is None
+
+
+# ---------------------------------------------------------------------------------------------- fabricated runs
+
+def fabricate_run(path, task, method, values, steps, complete=True, visit_obs=None):
+    """A run folder like experiments.run writes: config.json, metrics.jsonl, (summary.json), (visits.npz)."""
+    os.makedirs(path)
+    kind = "meta" if method.startswith("meta") else "ddpg"
+    cfg = config_lib.make_config(task, kind, steps=int(steps[-1]) if complete else 3 * int(steps[-1]))
+    run_args = {"env": task, "method": kind, "teacher": None, "preset": "paper", "noise": None,
+                "seeds": len(values), "seed": 0, "steps": None, "source": "gymnasium", "overrides": []}
+    with open(os.path.join(path, "config.json"), "w") as f:
+        json.dump({"config": config_lib.to_dict(cfg), "run_args": run_args, "jax_version": "x", "backend": "cpu",
+                   "devices": ["cpu:0"]}, f)
+    with open(os.path.join(path, "metrics.jsonl"), "w") as f:
+        for c, step in enumerate(steps):
+            for s in range(len(values)):
+                f.write(json.dumps({"seed": s, "chunk": c, "env_steps": int(step), "eval_return": float(values[s][c])})
+                        + "\n")
+    if complete:
+        with open(os.path.join(path, "summary.json"), "w") as f:
+            json.dump({"env_steps": int(steps[-1]), "num_seeds": len(values), "train_seconds": 1.5,
+                       "compile_seconds": 0.5}, f)
+    if visit_obs is not None:
+        rng = np.random.default_rng(len(str(path)))
+        n, k = len(values), 40
+        arrays = {f"{who}_{when}": rng.normal(size=(n, k, visit_obs)).astype(np.float32)
+                  for who in ("explore", "student") for when in ("early", "late")}
+        arrays["explore_count"] = np.full(n, 1000, np.int32)
+        arrays["student_count"] = np.full(n, 1000 if kind == "meta" else 0, np.int32)
+        np.savez(os.path.join(path, "visits.npz"), **arrays)
+
+
+@pytest.fixture(scope="module")
+def fabricated(tmp_path_factory):
+    """A paper-preset grid: IDP with three methods (ddpg-normal not run), pendulum meta incomplete."""
+    root = tmp_path_factory.mktemp("grid")
+    rng = np.random.default_rng(0)
+    steps = np.arange(1, 21) * 1000
+    ramp = np.linspace(0.0, 1.0, 20)
+    data = {
+        "meta-independent": 8000 * ramp ** 0.3 + rng.normal(0, 300, (3, 20)),
+        "meta-variance": 6000 * ramp + rng.normal(0, 300, (2, 20)),
+        "ddpg-paramnoise": 3000 * ramp + rng.normal(0, 500, (4, 20)),
+    }
+    for method, values in data.items():
+        fabricate_run(root / "paper" / "inverted_double_pendulum" / method, "inverted_double_pendulum", method,
+                      values, steps, visit_obs=9)
+    fabricate_run(root / "paper" / "pendulum" / "meta-independent", "pendulum", "meta-independent",
+                  rng.normal(-500, 50, (2, 5)), steps[:5], complete=False)
+    results = root / "results"
+    manifest = artefacts.build_all(str(root), str(results), "paper", embedding="pca", points_per_panel=60)
+    return {"root": root, "results": results, "data": data, "steps": steps, "manifest": manifest}
+
+
+def test_table2_numbers_match_hand_computation(fabricated):
+    table = json.loads((fabricated["results"] / "table2.json").read_text())
+    row = next(r for r in table["rows"] if r["task"] == "inverted_double_pendulum")
+    finals = {}
+    for method, values in fabricated["data"].items():
+        final = values[:, -2:].mean(1)  # 20 evaluations: the last 2
+        finals[method] = final
+        cell = row["methods"][method]
+        n = len(final)
+        s = math.sqrt(((final - final.mean()) ** 2).sum() / (n - 1))
+        assert cell["status"] == "done" and cell["n"] == n and cell["budget"] == 20000
+        assert cell["mean"] == pytest.approx(final.mean())
+        assert cell["std"] == pytest.approx(s)
+        assert cell["ci95_half_width"] == pytest.approx(stats.t.ppf(0.975, n - 1) * s / math.sqrt(n))
+        np.testing.assert_allclose(cell["per_seed"], final)
+    a, b = finals["meta-independent"], finals["ddpg-paramnoise"]
+    va, vb = a.var(ddof=1) / len(a), b.var(ddof=1) / len(b)
+    t = (a.mean() - b.mean()) / math.sqrt(va + vb)
+    df = (va + vb) ** 2 / (va ** 2 / (len(a) - 1) + vb ** 2 / (len(b) - 1))
+    assert row["welch"]["p"] == pytest.approx(2 * stats.t.sf(abs(t), df))
+    assert row["methods"]["ddpg-normal"] == {"status": "not run"}
+    pend = next(r for r in table["rows"] if r["task"] == "pendulum")
+    assert pend["methods"]["meta-independent"]["status"] == "incomplete" and pend["welch"] is None
+
+    md = (fabricated["results"] / "table2.md").read_text()
+    idp_line = next(line for line in md.splitlines() if line.startswith("| InvertedDoublePendulum |"))
+    assert "not run" in idp_line and "7,718 ± 277" in idp_line and "2,795 ± 1,325" in idp_line
+    assert "| 20,000 |" in idp_line
+    assert "incomplete (5,000 of 15,000 steps)" in md
+    assert "| Hopper | not run | not run | not run | not run | 205 ± 41 | 135 ± 42 | — | — |" in md
+    assert "| Reacher | not run | not run | not run | not run | -12.16 ± 1.19 | -11.67 ± 3.39 |" in md
+    assert "last max(1, floor(T/10)) evaluations" in md and "Welch" in md and "commit" in md
+
+    with open(fabricated["results"] / "table2_per_seed.csv") as f:
+        per_seed = list(csv.DictReader(f))
+    assert len(per_seed) == 3 + 2 + 4
+    got = [float(r["final_return"]) for r in per_seed if r["method"] == "ddpg-paramnoise"]
+    np.testing.assert_allclose(got, b)
+
+
+def test_steps_to_threshold(fabricated):
+    steps, data = fabricated["steps"], fabricated["data"]
+    threshold = data["ddpg-paramnoise"].mean(0).max()
+    with open(fabricated["results"] / "steps_to_threshold.csv") as f:
+        rows = {r["method"]: r for r in csv.DictReader(f) if r["task"] == "inverted_double_pendulum"}
+    base_step = int(steps[np.argmax(data["ddpg-paramnoise"].mean(0) >= threshold)])
+    meta_step = int(steps[np.argmax(data["meta-independent"].mean(0) >= threshold)])
+    assert float(rows["meta-independent"]["threshold"]) == pytest.approx(threshold)
+    assert int(rows["ddpg-paramnoise"]["step"]) == base_step
+    assert int(rows["meta-independent"]["step"]) == meta_step
+    assert float(rows["meta-independent"]["ratio"]) == pytest.approx(meta_step / base_step)
+    assert "Samples to reach" in (fabricated["results"] / "steps_to_threshold.md").read_text()
+
+
+def test_figures_readme_and_manifest(fabricated):
+    res = fabricated["results"]
+    for name in ("curves_inverted_double_pendulum.png", "curves_pendulum.png", "teacher_designs_idp.png",
+                 "visitation_inverted_double_pendulum.png", "README.md", "manifest.json"):
+        assert (res / name).exists() and (res / name).stat().st_size > 0, name
+    assert (res / "visitation_inverted_double_pendulum.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    manifest = json.loads((res / "manifest.json").read_text())
+    assert {c["method"] for c in manifest["cells"] if c["task"] == "inverted_double_pendulum"} == \
+        {"meta-independent", "meta-variance", "ddpg-paramnoise"}
+    assert ["inverted_double_pendulum", "ddpg-normal"] in manifest["not_run"]
+    cell = next(c for c in manifest["cells"] if c["method"] == "ddpg-paramnoise")
+    assert cell["seeds"] == 4 and cell["budget_env_steps"] == 20000 and cell["wall_seconds"] == pytest.approx(2.0)
+    assert manifest["build"]["machine"]["cpu_count"] == os.cpu_count()
+    assert "teacher_designs_idp.png" in (res / "README.md").read_text()
+
+
+def test_visitation_groups_keep_only_recorded_states():
+    v = {f"{w}_{t}": np.ones((2, 5, 3)) for w in ("explore", "student") for t in ("early", "late")}
+    teacher = {**v, "explore_count": np.array([3, 10]), "student_count": np.array([5, 5])}
+    ddpg = {**v, "explore_count": np.array([10, 10]), "student_count": np.array([0, 0])}
+    groups = artefacts.visitation_groups(teacher, ddpg)
+    assert groups[("early", "teacher")].shape == (3 + 5, 3)
+    assert groups[("late", "student")].shape == (10, 3)
+    assert groups[("early", "ddpg")].shape == (10, 3)
+
+
+def test_embeddings_give_two_columns():
+    x = np.random.default_rng(0).normal(size=(60, 4))
+    for method in ("pca", "tsne"):
+        assert artefacts.embed_2d(x, method).shape == (60, 2)
+    assert artefacts.embed_2d(x[:, :1], "pca").shape == (60, 2)
+    with pytest.raises(ValueError, match="unknown embedding"):
+        artefacts.embed_2d(x, "umap")
+
+
+# ---------------------------------------------------------------------------------------------- reproduce
+
+def test_reproduce_rejects_bad_input(capsys):
+    assert reproduce.main(["--tasks", "cartpole"]) == 2
+    assert "unknown task 'cartpole'" in capsys.readouterr().err
+    assert reproduce.main(["--methods", "sac"]) == 2
+    assert reproduce.main(["--seeds", "0"]) == 2
+
+
+def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
+    runs, results = tmp_path / "runs", tmp_path / "results"
+    argv = ["--tasks", "pendulum", "--methods", "meta-independent,ddpg-paramnoise", "--seeds", "2", "--steps", "600",
+            "--runs-dir", str(runs), "--results-dir", str(results), "--embedding", "pca", "--quiet", "--no-plot",
+            *TINY]
+    assert reproduce.main(argv + ["--dry-run"]) == 0
+    assert "running: python -m experiments.run --env=pendulum --method=meta" in capsys.readouterr().out
+    assert not runs.exists()
+
+    assert reproduce.main(argv) == 0
+    out = capsys.readouterr().out
+    assert "grid: 2 ran" in out
+    for method in ("meta-independent", "ddpg-paramnoise"):
+        cell = runs / "paper" / "pendulum" / method
+        assert (cell / "summary.json").exists() and (cell / "reproduce.json").exists()
+        rec = json.loads((cell / "reproduce.json").read_text())
+        assert rec["calls"][0]["status"] == 0 and rec["machine"]["cpu_count"] == os.cpu_count()
+    table = json.loads((results / "table2.json").read_text())
+    pend = next(r for r in table["rows"] if r["task"] == "pendulum")
+    summary = json.loads((runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").read_text())
+    # 2 evaluations: the final return is the last one, as in summary.json.
+    np.testing.assert_allclose(pend["methods"]["ddpg-paramnoise"]["per_seed"],
+                               summary["final_eval_return_per_seed"], rtol=1e-6)
+    assert pend["methods"]["meta-variance"] == {"status": "not run"} and pend["welch"] is not None
+    for name in ("table2.md", "table2_per_seed.csv", "curves_pendulum.png", "steps_to_threshold.csv",
+                 "visitation_pendulum.png", "README.md", "manifest.json"):
+        assert (results / name).exists(), name
+
+    # Second call: nothing to run, artefacts rebuilt.
+    (results / "table2.md").unlink()
+    assert reproduce.main(argv) == 0
+    out = capsys.readouterr().out
+    assert out.count("done, skipped") == 2 and "grid: 2 skipped" in out
+    assert (results / "table2.md").exists()
+
+    # A cell with a checkpoint but no summary is resumed (with the same explicit options).
+    (runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").unlink()
+    assert reproduce.main(argv + ["--methods", "ddpg-paramnoise"]) == 0
+    out = capsys.readouterr().out
+    assert "resuming: python -m experiments.run" in out and "grid: 1 resumed" in out
+    assert (runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").exists()
+    calls = json.loads((runs / "paper" / "pendulum" / "ddpg-paramnoise" / "reproduce.json").read_text())["calls"]
+    assert len(calls) == 2 and "--resume" in calls[1]["argv"]
+
+    # Artefacts only, modern preset: nothing stored there, every cell "not run", own folder.
+    assert reproduce.main(["--artefacts-only", "--preset", "modern", "--runs-dir", str(runs),
+                           "--results-dir", str(results)]) == 0
+    md = (results / "modern" / "table2.md").read_text()
+    assert "modern preset" in md and "| Pendulum | not run | not run | not run | not run |" in md
+
+
+# ---------------------------------------------------------------------------------------------- notebook
+
+def test_teacher_designs_notebook_runs_in_tiny_mode(monkeypatch):
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    from jupyter_client.kernelspec import KernelSpecManager
+
+    if "python3" not in KernelSpecManager().find_kernel_specs():
+        pytest.skip("no python3 kernel spec (pip install ipykernel)")
+    monkeypatch.setenv("NOTEBOOK_SIZE", "tiny")
+    monkeypatch.setenv("JAX_PLATFORMS", "cpu")
+    monkeypatch.setenv("PYTHONPATH", ROOT + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    path = os.path.join(ROOT, "experiments", "notebooks", "teacher_designs.ipynb")
+    nb = nbformat.read(path, as_version=4)
+    first = next(c for c in nb.cells if c.cell_type == "code")
+    assert 'SIZE = os.environ.get("NOTEBOOK_SIZE", "tiny")' in first.source
+    nbclient.NotebookClient(nb, timeout=300, kernel_name="python3",
+                            resources={"metadata": {"path": ROOT}}).execute()
+    text = "".join(o.get("text", "") for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", []))
+    assert "== static config: ok" in text
+    images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
+              if o.get("output_type") == "display_data" and "image/png" in o.get("data", {})]
+    assert len(images) >= 3
