@@ -122,21 +122,24 @@ def test_resume_with_another_config_is_refused_naming_the_fields(reference, caps
     assert "no config.json" in capsys.readouterr().err
 
 
-def test_seed_results_do_not_depend_on_the_device_count(reference, tmp_path):
-    # 4 seeds on 2 devices: each device runs 2 seeds, the same per-device program as the 1-device
-    # reference of 2 seeds; seeds 0 and 1 must come out identical (seed i's key is fold_in(key, i)).
-    out = str(tmp_path / "two_devices")
+def test_seed_results_do_not_depend_on_the_device_count(tmp_path):
+    # The same 2 seeds on 1 device and on 2 devices (one each). Not bitwise: XLA compiles the
+    # vmapped program for other batch shapes (1 or 2 seeds per device, or 4 seeds in total),
+    # which changes float32 round-off (~1e-7 relative), and RL training amplifies round-off over
+    # many updates (measured 4e-4 after 3 cycles of 50 updates). So compare after one cycle.
+    one, two = str(tmp_path / "one_device"), str(tmp_path / "two_devices")
     flags = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    proc = _subprocess(TINY + ["--steps=900", "--seeds=4", "--out", out], env=flags)
-    stdout, err = proc.communicate(timeout=600)
-    assert proc.returncode == 0, err[-3000:]
-    assert "on 2 cpu device(s)" in stdout
-    a, b = _policy_arrays(reference), _policy_arrays(out)
-    # Not bitwise: XLA:CPU splits matmuls over a per-device thread pool, so float32 round-off
-    # differs with the device count (measured: ~1e-7 after one update, ~5e-6 after 3 chunks).
-    # Seeds themselves differ by orders of magnitude more.
+    p1 = _subprocess(TINY + ["--steps=300", "--out", one])
+    p2 = _subprocess(TINY + ["--steps=300", "--out", two], env=flags)
+    out1, err1 = p1.communicate(timeout=600)
+    out2, err2 = p2.communicate(timeout=600)
+    assert p1.returncode == 0, err1[-3000:]
+    assert p2.returncode == 0, err2[-3000:]
+    assert "on 1 cpu device(s)" in out1 and "on 2 cpu device(s)" in out2
+    a, b = _policy_arrays(one), _policy_arrays(two)
     for k in a:
-        np.testing.assert_allclose(a[k], b[k][:2], rtol=1e-3, atol=2e-5, err_msg=k)
+        np.testing.assert_allclose(a[k], b[k], rtol=1e-4, atol=1e-6, err_msg=k)
+    # ... while different seeds differ by orders of magnitude more.
     assert np.abs(a["actor/dense_0/kernel"][0] - a["actor/dense_0/kernel"][1]).max() > 1e-2
     bad = _subprocess(TINY + ["--steps=900", "--seeds=3", "--out", str(tmp_path / "x")], env=flags)
     _, err = bad.communicate(timeout=300)
