@@ -46,12 +46,12 @@ import datetime
 import json
 import math
 import os
-import platform
-import subprocess
 import sys
-from typing import Any, Iterable, Sequence
+from typing import Iterable, Sequence
 
 import numpy as np
+
+from metapg_jax import reporting
 
 # ---------------------------------------------------------------------------------------------- grid
 
@@ -250,39 +250,6 @@ def collect(preset_dir: str, tasks: Iterable[str] = TASKS, methods: Iterable[str
 
 # ---------------------------------------------------------------------------------------------- provenance
 
-def git_commit(root: str | None = None) -> str | None:
-    """``git rev-parse HEAD`` of the repository (None outside a git checkout)."""
-    root = root or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return out.stdout.strip() or None if out.returncode == 0 else None
-
-
-def git_dirty(root: str | None = None) -> bool | None:
-    root = root or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    try:
-        out = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=root,
-                             capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return bool(out.stdout.strip()) if out.returncode == 0 else None
-
-
-def machine() -> dict:
-    """Where this process runs: platform, CPU count, JAX backend and devices."""
-    info = {"platform": platform.platform(), "python": platform.python_version(), "cpu_count": os.cpu_count()}
-    try:
-        import jax
-
-        info.update(jax_version=jax.__version__, jax_backend=jax.default_backend(),
-                    jax_devices=[str(d) for d in jax.devices()])
-    except Exception as err:  # noqa: BLE001  (provenance must never stop the artefacts)
-        info["jax_error"] = repr(err)
-    return info
-
-
 def cell_provenance(r: RunResult) -> dict:
     """What a result cell was made from: commit, config, seeds, budget, machine, wall time."""
     prov = r.provenance
@@ -314,7 +281,7 @@ def provenance_footer(build: dict, cells: Iterable[RunResult]) -> str:
 
 def build_info(runs_dir: str) -> dict:
     return {"built": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-            "runs_dir": runs_dir, "commit": git_commit(), "dirty": git_dirty(), "machine": machine()}
+            "runs_dir": runs_dir, **reporting.provenance()}
 
 
 # ---------------------------------------------------------------------------------------------- Table 2

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from metapg_jax.reporting import plot_learning_curve  # noqa: F401  (re-exported for scripts)
-
 
 def _per_seed(rows: list[dict], key: str) -> tuple[np.ndarray, np.ndarray]:
     seeds = sorted({r["seed"] for r in rows})

@@ -127,7 +127,7 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float) -
     calls = old.get("calls", []) + [{"argv": argv, "status": status, "wall_seconds": round(seconds, 2),
                                      "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}]
     reporting.write_json_atomic(path, {
-        "commit": artefacts.git_commit(), "dirty": artefacts.git_dirty(), "machine": artefacts.machine(),
+        **reporting.provenance(),
         "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 2), "calls": calls})
 
 

@@ -32,10 +32,18 @@ def provenance() -> dict:
         except (OSError, subprocess.SubprocessError):
             return ""
 
+    machine = {"platform": platform.platform(), "processor": platform.machine(),
+               "cpu_count": os.cpu_count(), "python": platform.python_version()}
+    try:
+        import jax
+
+        machine.update(jax_version=jax.__version__, jax_backend=jax.default_backend(),
+                       jax_devices=[str(d) for d in jax.devices()])
+    except Exception as err:  # noqa: BLE001 - provenance must never stop a run
+        machine["jax_error"] = repr(err)
     return {"commit": git("rev-parse", "HEAD") or "unknown",
             "dirty": bool(git("status", "--porcelain", "--untracked-files=no")),
-            "machine": {"platform": platform.platform(), "processor": platform.machine(),
-                        "cpu_count": os.cpu_count(), "python": platform.python_version()}}
+            "machine": machine}
 
 
 def write_json_atomic(path: str, obj: Any) -> None:

@@ -1,7 +1,5 @@
 """The teacher and Algorithm 1: log-prob gradients, REINFORCE direction, look-ahead isolation, accounting."""
 
-import dataclasses
-
 import jax
 import jax.numpy as jnp
 import numpy as np
