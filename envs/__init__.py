@@ -13,9 +13,14 @@ used by the experiment presets.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import io
 
-from brax.envs.base import Env
+# mujoco.mjx prints "Failed to import warp" on import when its optional GPU (Warp) backend is
+# not installed; that is expected here, so its stdout is swallowed for this one import.
+with contextlib.redirect_stdout(io.StringIO()):
+    from brax.envs.base import Env
 
 from envs.wrappers import AutoResetWrapper, EpisodeWrapper
 

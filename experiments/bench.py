@@ -215,6 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="pendulum only, seeds 1 and 8")
     p.add_argument("--out", default="BENCHMARKS.md")
     p.add_argument("--json", default="benchmarks.json")
+    p.add_argument("--append", action="store_true", help="add rows to an existing --json (e.g. another grid)")
     p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
     args = p.parse_args(argv)
     if args.one:
@@ -232,6 +233,9 @@ def main(argv: list[str] | None = None) -> int:
             print("error: --seeds and --repeats must be positive", file=sys.stderr)
             return 2
     rows = []
+    if args.append and os.path.exists(args.json):
+        with open(args.json) as f:
+            rows = json.load(f)["rows"]
     import jax
 
     meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
