@@ -162,6 +162,47 @@ def measure_one(spec: dict) -> dict:
     }
 
 
+def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: int = 3) -> dict:
+    """Env stepping alone: ours (``num_envs`` vmapped, jitted scan with the training wrappers)
+    next to gymnasium's own env (MuJoCo C / NumPy, one env in a Python loop)."""
+    import gymnasium
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    import envs
+
+    env = envs.make(task)
+
+    def run(state, key):
+        def step(s, k):
+            a = jax.random.uniform(k, (num_envs, env.action_size), jnp.float32, -1.0, 1.0)
+            s = jax.vmap(env.step)(s, a)
+            return s, s.reward.sum()
+
+        return jax.lax.scan(step, state, jax.random.split(key, steps))
+
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
+    t = time.perf_counter()
+    fn = jax.jit(run).lower(state, jax.random.PRNGKey(1)).compile()
+    compile_s = time.perf_counter() - t
+    ours_s, _ = _timed(fn, (state, jax.random.PRNGKey(1)), repeats)
+
+    genv = gymnasium.make(envs.get_spec(task).gym_id)
+    genv.reset(seed=0)
+    rng = np.random.default_rng(0)
+    low, high = genv.action_space.low, genv.action_space.high
+    n = 3000
+    t = time.perf_counter()
+    for _ in range(n):
+        _, _, term, trunc, _ = genv.step(rng.uniform(low, high).astype(np.float32))
+        if term or trunc:
+            genv.reset()
+    gym_s = time.perf_counter() - t
+    return {"task": task, "num_envs": num_envs, "compile_s": compile_s,
+            "ours_steps_per_s": num_envs * steps / ours_s, "gymnasium_steps_per_s": n / gym_s}
+
+
 def _row_md(r: dict, scaling: float | None) -> str:
     def f(x, fmt="{:,.0f}"):
         return "–" if x is None else fmt.format(x)
@@ -215,11 +256,30 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--quick", action="store_true", help="pendulum only, seeds 1 and 8")
     p.add_argument("--out", default="BENCHMARKS.md")
     p.add_argument("--json", default="benchmarks.json")
+    p.add_argument("--env-speed", action="store_true",
+                   help="only environment stepping: ours (8 vmapped envs) vs gymnasium's own, all tasks")
     p.add_argument("--append", action="store_true", help="add rows to an existing --json (e.g. another grid)")
     p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
     args = p.parse_args(argv)
     if args.one:
         print("BENCH_RESULT " + json.dumps(measure_one(json.loads(args.one))), flush=True)
+        return 0
+    if args.env_speed:
+        import envs
+
+        lines = ["| task | ours: 8 vmapped envs, steps/s | gymnasium (MuJoCo C / NumPy), 1 env, steps/s | "
+                 "compile s |", "|---|---|---|---|"]
+        results = []
+        for task in envs.TASKS:
+            r = measure_env_speed(task, repeats=args.repeats)
+            results.append(r)
+            lines.append(f"| {task} | {r['ours_steps_per_s']:,.0f} | {r['gymnasium_steps_per_s']:,.0f} | "
+                         f"{r['compile_s']:.1f} |")
+            print(lines[-1], flush=True)
+        with open(args.json, "w") as f:
+            json.dump({"env_speed": results}, f, indent=1)
+        with open(args.out, "w") as f:
+            f.write("# Environment stepping alone\n\n" + "\n".join(lines) + "\n")
         return 0
     if args.quick:
         args.envs, args.seeds = "pendulum", "1,8"
