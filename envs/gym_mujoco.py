@@ -290,6 +290,9 @@ class InvertedDoublePendulum(GymMujocoEnv):
 class _LocomotionMixin:
     """Forward-velocity and control-cost terms shared by Hopper/HalfCheetah."""
 
+    def _obs_size(self):
+        return self.mj_model.nq + self.mj_model.nv - int(self._exclude_current_positions_from_observation)
+
     def _positions_obs(self, data):
         qpos = data.qpos[1:] if self._exclude_current_positions_from_observation else data.qpos
         return qpos
@@ -340,13 +343,6 @@ class Hopper(_LocomotionMixin, GymMujocoEnv):
         self._reset_noise_scale = reset_noise_scale
         self._exclude_current_positions_from_observation = (
             exclude_current_positions_from_observation
-        )
-
-    def _obs_size(self):
-        return (
-            self.mj_model.nq
-            + self.mj_model.nv
-            - int(self._exclude_current_positions_from_observation)
         )
 
     def _get_obs(self, data):
@@ -414,13 +410,6 @@ class HalfCheetah(_LocomotionMixin, GymMujocoEnv):
         self._reset_noise_scale = reset_noise_scale
         self._exclude_current_positions_from_observation = (
             exclude_current_positions_from_observation
-        )
-
-    def _obs_size(self):
-        return (
-            self.mj_model.nq
-            + self.mj_model.nv
-            - int(self._exclude_current_positions_from_observation)
         )
 
     def _get_obs(self, data):
