@@ -212,13 +212,7 @@ def load_run(path: str, task: str = "", method: str = "") -> RunResult | None:
         return None
     with open(cfg_path) as f:
         stored = json.load(f)
-    rows = []
-    with open(metrics_path) as f:
-        for line in f:
-            try:
-                rows.append(json.loads(line))
-            except json.JSONDecodeError:  # a line cut by a kill
-                continue
+    rows = reporting.read_jsonl(metrics_path)
     if not rows:
         return None
     steps, values = reporting.curves(rows)

@@ -114,6 +114,12 @@ def config_from_run_args(a: dict) -> config_lib.Config:
     return config_lib.validate(cfg)
 
 
+def run_label(cfg: config_lib.Config) -> str:
+    """E.g. 'pendulum meta/independent' or 'hopper ddpg/adaptive-param'."""
+    detail = cfg.meta.teacher if cfg.run.method == "meta" else cfg.noise.kind
+    return f"{cfg.env.name} {cfg.run.method}/{detail}"
+
+
 def check_devices(num_seeds: int) -> None:
     import jax
 
@@ -210,21 +216,14 @@ class _Interrupt:
 
 def _truncate_jsonl(path: str, keep) -> None:
     """Keeps the rows for which ``keep(row)`` holds (drops rows written after the checkpoint), atomically."""
+    from metapg_jax import reporting
+
     if not os.path.exists(path):
         return
-    with open(path) as f:
-        lines = [line for line in f if line.strip()]
-    kept = []
-    for line in lines:
-        try:
-            row = json.loads(line)
-        except json.JSONDecodeError:  # a line cut by a kill
-            continue
-        if keep(row):
-            kept.append(line if line.endswith("\n") else line + "\n")
+    kept = [row for row in reporting.read_jsonl(path) if keep(row)]
     tmp = path + ".tmp"
     with open(tmp, "w") as f:
-        f.writelines(kept)
+        f.writelines(json.dumps(row) + "\n" for row in kept)
         f.flush()
         os.fsync(f.fileno())
     os.replace(tmp, path)
@@ -254,8 +253,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
 
     trainer = make_train(cfg)
     keys = seed_keys(seed, num_seeds)
-    name = f"{cfg.env.name} {cfg.run.method}" + (f"/{cfg.meta.teacher}" if cfg.run.method == "meta" else
-                                                  f"/{cfg.noise.kind}")
+    name = run_label(cfg)
     print(f"{name} ({cfg.preset} preset, {cfg.env.source} source): {num_seeds} seeds x "
           f"{cfg.run.total_steps:,} env steps, {cfg.num_chunks} evaluations every {cfg.run.eval_every:,} steps "
           f"({cfg.cycles_per_chunk} cycles of {cfg.steps_per_cycle} steps) on {jax.device_count()} "
@@ -360,8 +358,7 @@ def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool
     reporting.write_json_atomic(os.path.join(out, "summary.json"), summary)
     export_policies(os.path.join(out, "policy.npz"), cfg, state.student.actor, state.normalizer)
     _save_visits(os.path.join(out, "visits.npz"), state.visits)
-    name = f"{cfg.env.name} {cfg.run.method}" + (f"/{cfg.meta.teacher}" if cfg.run.method == "meta" else
-                                                  f"/{cfg.noise.kind}")
+    name = run_label(cfg)
     if plot:
         title = f"{name}, {cfg.preset} preset: {num_seeds} seeds"
         reporting.plot_learning_curve(rows, os.path.join(out, "learning_curve.png"), title)
@@ -413,10 +410,9 @@ def _save_visits(path: str, visits) -> None:
 
     import numpy as np
 
-    arrays = {f.name: np.asarray(getattr(visits, f.name)) for f in dataclasses.fields(visits)}
-    tmp = path + ".tmp.npz"
-    np.savez_compressed(tmp, **arrays)
-    os.replace(tmp, path)
+    from metapg_jax.reporting import savez_atomic
+
+    savez_atomic(path, {f.name: np.asarray(getattr(visits, f.name)) for f in dataclasses.fields(visits)})
 
 
 def _peak_rss_mib() -> float:

@@ -15,7 +15,6 @@ Actions are in the normalised box [-1, 1] every task of this project uses;
 from __future__ import annotations
 
 import json
-import os
 from typing import Callable
 
 import numpy as np
@@ -63,9 +62,9 @@ def export_policies(path: str, config, student_actor, normalizer, action_low=Non
     arrays["normalizer/mean"] = np.asarray(mean)
     arrays["normalizer/std"] = np.asarray(std)
     arrays["description"] = np.frombuffer(json.dumps(description).encode(), dtype=np.uint8)
-    tmp = path + ".tmp.npz"
-    np.savez_compressed(tmp, **arrays)
-    os.replace(tmp, path)
+    from metapg_jax.reporting import savez_atomic
+
+    savez_atomic(path, arrays)
 
 
 def describe(path: str) -> dict:

@@ -93,8 +93,24 @@ class JsonlWriter:
 
 
 def read_jsonl(path: str) -> list[dict]:
+    """The rows of a JSONL file; a last line cut by a kill is skipped."""
+    rows = []
     with open(path) as f:
-        return [json.loads(line) for line in f if line.strip()]
+        for line in f:
+            if not line.strip():
+                continue
+            try:
+                rows.append(json.loads(line))
+            except json.JSONDecodeError:
+                continue
+    return rows
+
+
+def savez_atomic(path: str, arrays: dict) -> None:
+    """``np.savez_compressed`` to a temporary name in the same folder, then renamed over ``path``."""
+    tmp = path + ".tmp.npz"
+    np.savez_compressed(tmp, **arrays)
+    os.replace(tmp, path)
 
 
 def chunk_rows(metrics: dict, chunk: int, wall_time: float) -> list[dict]:
