@@ -164,7 +164,11 @@ def measure_one(spec: dict) -> dict:
 
 def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: int = 3) -> dict:
     """Env stepping alone: ours (``num_envs`` vmapped, jitted scan with the training wrappers)
-    next to gymnasium's own env (MuJoCo C / NumPy, one env in a Python loop)."""
+    next to gymnasium's own env (MuJoCo C / NumPy, one env in a Python loop).
+
+    MuJoCo tasks are timed twice in this process, with the early-exit line search (our
+    default) and with MJX's stock one (``early_exit_linesearch=False``), and the two
+    trajectories are checked to be identical (see envs/gym_mujoco.py, "Speed")."""
     import gymnasium
     import jax
     import jax.numpy as jnp
@@ -172,21 +176,33 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
 
     import envs
 
-    env = envs.make(task)
+    def time_ours(**overrides):
+        env = envs.make(task, **overrides)
 
-    def run(state, key):
-        def step(s, k):
-            a = jax.random.uniform(k, (num_envs, env.action_size), jnp.float32, -1.0, 1.0)
-            s = jax.vmap(env.step)(s, a)
-            return s, s.reward.sum()
+        def run(state, key):
+            def step(s, k):
+                a = jax.random.uniform(k, (num_envs, env.action_size), jnp.float32, -1.0, 1.0)
+                s = jax.vmap(env.step)(s, a)
+                return s, (s.obs, s.reward)
 
-        return jax.lax.scan(step, state, jax.random.split(key, steps))
+            return jax.lax.scan(step, state, jax.random.split(key, steps))
 
-    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
-    t = time.perf_counter()
-    fn = jax.jit(run).lower(state, jax.random.PRNGKey(1)).compile()
-    compile_s = time.perf_counter() - t
-    ours_s, _ = _timed(fn, (state, jax.random.PRNGKey(1)), repeats)
+        state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
+        t = time.perf_counter()
+        fn = jax.jit(run).lower(state, jax.random.PRNGKey(1)).compile()
+        compile_s = time.perf_counter() - t
+        seconds, times = _timed(fn, (state, jax.random.PRNGKey(1)), repeats)
+        traj = jax.device_get(fn(state, jax.random.PRNGKey(1))[1])
+        return num_envs * steps / seconds, times, compile_s, traj
+
+    ours, ours_times, compile_s, traj = time_ours()
+    out = {"task": task, "num_envs": num_envs, "steps": steps, "compile_s": compile_s,
+           "ours_steps_per_s": ours, "ours_times": ours_times}
+    if task != "pendulum":
+        stock, stock_times, stock_compile_s, stock_traj = time_ours(early_exit_linesearch=False)
+        out.update(stock_steps_per_s=stock, stock_times=stock_times, stock_compile_s=stock_compile_s,
+                   early_exit_speedup=ours / stock,
+                   identical_to_stock=all(np.array_equal(a, b) for a, b in zip(traj, stock_traj)))
 
     genv = gymnasium.make(envs.get_spec(task).gym_id)
     genv.reset(seed=0)
@@ -198,9 +214,48 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
         _, _, term, trunc, _ = genv.step(rng.uniform(low, high).astype(np.float32))
         if term or trunc:
             genv.reset()
-    gym_s = time.perf_counter() - t
-    return {"task": task, "num_envs": num_envs, "compile_s": compile_s,
-            "ours_steps_per_s": num_envs * steps / ours_s, "gymnasium_steps_per_s": n / gym_s}
+    out["gymnasium_steps_per_s"] = n / (time.perf_counter() - t)
+    return out
+
+
+def env_speed_markdown(results: list[dict], meta: dict) -> str:
+    def f(r, k, fmt="{:,.0f}"):
+        return fmt.format(r[k]) if k in r else "–"
+
+    lines = [
+        f"`python -m experiments.bench --env-speed` on {meta['date']} ({meta['machine']}; jax {meta['jax']}, "
+        f"backend {meta['backend']}; medians of {meta['repeats']} timed repeats; raw numbers: "
+        f"`{os.path.basename(meta['json'])}`): our tasks, {results[0]['num_envs']} envs vmapped in a jitted scan "
+        f"of {results[0]['steps']:,} uniform-random steps with the training wrappers (auto-reset included), "
+        "with our early-exit line search (the default) and with MJX's stock one, in the same process; "
+        "'identical' says whether the two trajectories (observations, rewards) are bitwise equal. Next to "
+        "them gymnasium's own env (MuJoCo C, or NumPy for Pendulum) stepped one at a time in a Python loop.", "",
+        "| task | ours, 8 envs, steps/s | stock MJX line search, steps/s | speedup | identical | "
+        "gymnasium, 1 env, steps/s | compile s |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        ident = {True: "yes", False: "NO"}.get(r.get("identical_to_stock"), "–")
+        lines.append(f"| {r['task']} | {f(r, 'ours_steps_per_s')} | {f(r, 'stock_steps_per_s')} | "
+                     f"{f(r, 'early_exit_speedup', '{:.2f}x')} | {ident} | {f(r, 'gymnasium_steps_per_s')} | "
+                     f"{f(r, 'compile_s', '{:.1f}')} |")
+    return "\n".join(lines)
+
+
+def write_section(path: str, name: str, text: str) -> None:
+    """Replaces the generated section ``name`` of ``path`` (between marker comments), keeping
+    everything else in the file (the hand-written analysis); appends it if it is not there."""
+    begin, end = f"<!-- bench:{name} (generated) -->", f"<!-- /bench:{name} -->"
+    old = open(path).read() if os.path.exists(path) else "# Benchmarks\n"
+    block = f"{begin}\n{text.rstrip()}\n{end}"
+    if begin in old and end in old:
+        new = old[:old.index(begin)] + block + old[old.index(end) + len(end):]
+    else:
+        new = old.rstrip() + "\n\n" + block + "\n"
+    tmp = path + ".tmp"
+    with open(tmp, "w") as fh:
+        fh.write(new)
+    os.replace(tmp, path)
 
 
 def _row_md(r: dict, scaling: float | None) -> str:
@@ -224,8 +279,7 @@ def seed_scaling(rows: list[dict]) -> dict:
 def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
     scaling = seed_scaling(rows)
     lines = [
-        "# Benchmarks", "",
-        f"Written by `python -m experiments.bench` on {meta['date']} ({meta['machine']}; jax {meta['jax']}, "
+        f"`python -m experiments.bench` on {meta['date']} ({meta['machine']}; jax {meta['jax']}, "
         f"backend {meta['backend']}; {meta['repeats']} timed repeats per number, medians). Raw numbers, every "
         f"repeat: `{os.path.basename(meta['json'])}`.", "",
         "Columns: steady-state env steps/s of whole training (cycles only, evaluation excluded) in total and per "
@@ -240,7 +294,7 @@ def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     lines += [_row_md(r, scaling.get(id(r))) for r in rows]
-    open(path, "w").write("\n".join(lines) + "\n")
+    write_section(path, "training", "\n".join(lines))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -255,7 +309,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="env steps per seed per timed call (default: 3000 pendulum, 600 MuJoCo tasks)")
     p.add_argument("--quick", action="store_true", help="pendulum only, seeds 1 and 8")
     p.add_argument("--out", default="BENCHMARKS.md")
-    p.add_argument("--json", default="benchmarks.json")
+    p.add_argument("--json", default=None,
+                   help="raw numbers (default benchmarks.json; benchmarks_env_speed.json with --env-speed)")
     p.add_argument("--env-speed", action="store_true",
                    help="only environment stepping: ours (8 vmapped envs) vs gymnasium's own, all tasks")
     p.add_argument("--append", action="store_true", help="add rows to an existing --json (e.g. another grid)")
@@ -264,22 +319,22 @@ def main(argv: list[str] | None = None) -> int:
     if args.one:
         print("BENCH_RESULT " + json.dumps(measure_one(json.loads(args.one))), flush=True)
         return 0
+    import jax
+
+    json_path = args.json or ("benchmarks_env_speed.json" if args.env_speed else "benchmarks.json")
+    meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
+            "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
+            "repeats": args.repeats, "json": json_path}
     if args.env_speed:
         import envs
 
-        lines = ["| task | ours: 8 vmapped envs, steps/s | gymnasium (MuJoCo C / NumPy), 1 env, steps/s | "
-                 "compile s |", "|---|---|---|---|"]
         results = []
         for task in envs.TASKS:
-            r = measure_env_speed(task, repeats=args.repeats)
-            results.append(r)
-            lines.append(f"| {task} | {r['ours_steps_per_s']:,.0f} | {r['gymnasium_steps_per_s']:,.0f} | "
-                         f"{r['compile_s']:.1f} |")
-            print(lines[-1], flush=True)
-        with open(args.json, "w") as f:
-            json.dump({"env_speed": results}, f, indent=1)
-        with open(args.out, "w") as f:
-            f.write("# Environment stepping alone\n\n" + "\n".join(lines) + "\n")
+            results.append(measure_env_speed(task, repeats=args.repeats))
+            print(env_speed_markdown(results, meta).splitlines()[-1], flush=True)
+            with open(json_path, "w") as f:
+                json.dump({"meta": meta, "env_speed": results}, f, indent=1)
+            write_section(args.out, "env-speed", env_speed_markdown(results, meta))
         return 0
     if args.quick:
         args.envs, args.seeds = "pendulum", "1,8"
@@ -293,14 +348,9 @@ def main(argv: list[str] | None = None) -> int:
             print("error: --seeds and --repeats must be positive", file=sys.stderr)
             return 2
     rows = []
-    if args.append and os.path.exists(args.json):
-        with open(args.json) as f:
+    if args.append and os.path.exists(json_path):
+        with open(json_path) as f:
             rows = json.load(f)["rows"]
-    import jax
-
-    meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
-            "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
-            "repeats": args.repeats, "json": args.json}
     for i, spec in enumerate(specs):
         label = f"{spec['env']} {spec['method']} {spec['preset']} x{spec['seeds']}"
         print(f"[{i + 1}/{len(specs)}] {label} ...", flush=True)
@@ -317,14 +367,14 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['env_alone_steps_per_s']:,.0f} | updates alone {r['updates_alone_per_s']:,.0f}/s | overhead "
               f"{r['overhead_ratio']:.2f} | eval {r['eval_s']:.2f} s | RSS +{r['rss_growth_mib']:,.0f} MiB "
               f"(buffers {r['buffer_mib']:,.0f})", flush=True)
-        with open(args.json, "w") as f:  # rewritten after every row: a long benchmark never loses rows
+        with open(json_path, "w") as f:  # rewritten after every row: a long benchmark never loses rows
             json.dump({"meta": meta, "rows": rows}, f, indent=1)
         write_markdown(rows, args.out, meta)
     scaling = seed_scaling(rows)
     for r in rows:
         if r["seeds"] == 8 and id(r) in scaling:
             print(f"{r['env']} {r['method']} {r['preset']}: 8-seed scaling {scaling[id(r)]:.2f}x")
-    print(f"wrote {args.out} and {args.json}")
+    print(f"wrote {args.out} and {json_path}")
     return 0
 
 
