@@ -231,15 +231,63 @@ def _read_json(path: str) -> dict:
         return json.load(f)
 
 
-def collect(preset_dir: str, tasks: Iterable[str] = TASKS, methods: Iterable[str] = METHODS) -> dict:
-    """{(task, method): RunResult} for the cells of ``<preset_dir>/<task>/<method>`` that have evaluations."""
+def collect(preset_dir: str, tasks: Iterable[str] = TASKS, methods: Iterable[str] = METHODS,
+            archive_dir: str | None = None) -> dict:
+    """{(task, method): RunResult} for the cells of ``<preset_dir>/<task>/<method>`` that have evaluations.
+
+    With ``archive_dir`` (the committed copies, see ``archive_cell``), a cell that has no finished run
+    under ``preset_dir`` is read from ``<archive_dir>/<task>/<method>`` when a finished one is archived
+    there: run folders are not committed, so a fresh clone has only the archive."""
     out = {}
     for task in tasks:
         for method in methods:
             r = load_run(os.path.join(preset_dir, task, method), task, method)
+            if archive_dir is not None and (r is None or not r.complete):
+                a = load_run(os.path.join(archive_dir, task, method), task, method)
+                if a is not None and a.complete:
+                    r = a
             if r is not None:
                 out[(task, method)] = r
     return out
+
+
+# What a finished cell keeps in the committed archive (``<results>/cells/<task>/<method>``): everything the
+# artefacts read. Model checkpoints and the run's own PNGs stay in the run folder (gitignored).
+ARCHIVE_FILES = ("config.json", "metrics.jsonl", "summary.json", "reproduce.json")
+# visits.npz (the state-visitation sample) is kept for the two methods the figure compares, thinned to
+# this many states per seed and array (evenly spaced; the figure draws <= 500 points per panel).
+ARCHIVE_VISITS_PER_SEED = 250
+
+
+def archive_dir_for(results_dir: str, preset: str) -> str:
+    return os.path.join(results_dir_for(results_dir, preset), "cells")
+
+
+def archive_cell(run_path: str, archive_path: str, method: str) -> bool:
+    """Copies a finished run folder's results into the archive (atomically, file by file); False if the
+    run is not finished. Re-archiving a cell replaces its files."""
+    import shutil
+
+    if not os.path.exists(os.path.join(run_path, "summary.json")):
+        return False
+    os.makedirs(archive_path, exist_ok=True)
+    for name in ARCHIVE_FILES:
+        src = os.path.join(run_path, name)
+        if os.path.exists(src):
+            tmp = os.path.join(archive_path, name + ".tmp")
+            shutil.copyfile(src, tmp)
+            os.replace(tmp, os.path.join(archive_path, name))
+    visits = os.path.join(run_path, "visits.npz")
+    if method in (META, BASELINE) and os.path.exists(visits):
+        with np.load(visits) as v:
+            thinned = {}
+            for k, x in v.items():
+                if x.ndim >= 2 and x.shape[-2] > ARCHIVE_VISITS_PER_SEED:  # (..., states, obs)
+                    idx = np.linspace(0, x.shape[-2] - 1, ARCHIVE_VISITS_PER_SEED).round().astype(int)
+                    x = np.take(x, idx, axis=-2)
+                thinned[k] = x
+        reporting.savez_atomic(os.path.join(archive_path, "visits.npz"), thinned)
+    return True
 
 
 # ---------------------------------------------------------------------------------------------- provenance
@@ -667,10 +715,17 @@ def results_dir_for(results_dir: str, preset: str) -> str:
 def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Sequence[str] = TASKS,
               methods: Sequence[str] = tuple(METHODS), embedding: str = "tsne", visitation_task: str | None = None,
               points_per_panel: int = 500, extra_provenance: dict | None = None) -> dict:
-    """Rebuilds every artefact from ``<runs_dir>/<preset>/<task>/<method>``; returns the manifest."""
+    """Rebuilds every artefact from ``<runs_dir>/<preset>/<task>/<method>``; returns the manifest.
+
+    Finished run folders are first copied into the committed archive ``<results>/cells/<task>/<method>``
+    (``archive_cell``); cells without a finished run folder are read from there."""
     out_dir = results_dir_for(results_dir, preset)
     os.makedirs(out_dir, exist_ok=True)
-    results = collect(os.path.join(runs_dir, preset), tasks, methods)
+    archive = archive_dir_for(results_dir, preset)
+    for task in tasks:  # every finished run folder is (re)archived before anything is read
+        for method in methods:
+            archive_cell(os.path.join(runs_dir, preset, task, method), os.path.join(archive, task, method), method)
+    results = collect(os.path.join(runs_dir, preset), tasks, methods, archive_dir=archive)
     build = build_info(runs_dir)
     build["preset"] = preset
     if extra_provenance:

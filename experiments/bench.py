@@ -80,12 +80,18 @@ def measure_one(spec: dict) -> dict:
     from metapg_jax import replay
     from metapg_jax.config import make_config
     from metapg_jax.rollout import rollout
-    from metapg_jax.train import make_train, seed_keys, train_updates
+    from metapg_jax.train import make_train, seed_keys, train_updates, vmap_seeds
 
     rss_base = _rss_mib()
     overrides = dict(spec.get("overrides", {}))
     cfg = make_config(spec["env"], spec["method"], spec["preset"], overrides=overrides)
-    trainer = make_train(cfg)
+    env = None
+    if spec.get("stock_mjx"):  # MJX's own (scanned) line search instead of our early exit, for before/after
+        import envs
+
+        env = envs.make(cfg.env.name, source=cfg.env.source, episode_length=cfg.episode_length,
+                        early_exit_linesearch=False)
+    trainer = make_train(cfg, env)
     seeds, repeats = spec["seeds"], spec["repeats"]
     cycles = max(1, spec["target_steps"] // cfg.steps_per_cycle)
     keys = seed_keys(0, seeds)
@@ -96,9 +102,12 @@ def measure_one(spec: dict) -> dict:
     def cycles_fn(state):
         return jax.lax.scan(lambda s, _: trainer.cycle(s), state, None, length=cycles)
 
-    state = jax.jit(jax.vmap(trainer.init))(keys)
+    state = jax.jit(vmap_seeds(trainer.init))(keys)
     t = time.perf_counter()
-    full = jax.jit(jax.vmap(cycles_fn), donate_argnums=0).lower(state).compile()
+    # plain_vmap: an unnamed seed axis, so episode-start branches run for every seed at every step
+    # (the numbers are the same; see metapg_jax.train.any_over_seeds): the 'before' of that change.
+    seed_vmap = jax.vmap if spec.get("plain_vmap") else vmap_seeds
+    full = jax.jit(seed_vmap(cycles_fn), donate_argnums=0).lower(state).compile()
     compile_s = time.perf_counter() - t
     # Warm-up: fill the buffer past the warm-up phase so every timed call does real updates.
     while int(state.env_steps[0]) < max(cfg.run.warmup_steps, cfg.ddpg.batch_size):
@@ -148,7 +157,8 @@ def measure_one(spec: dict) -> dict:
     buffer_mib = seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20
     peak = _peak_rss_mib()
     return {
-        **{k: spec[k] for k in ("env", "method", "preset", "seeds")},
+        **{k: spec[k] for k in ("env", "method", "preset", "seeds")}, "stock_mjx": bool(spec.get("stock_mjx")),
+        "plain_vmap": bool(spec.get("plain_vmap")), "measured": time.strftime("%Y-%m-%d"),
         "backend": jax.default_backend(), "device": str(jax.devices()[0]),
         "cycles": cycles, "steps_per_cycle": cfg.steps_per_cycle, "updates_per_cycle": updates_per_cycle,
         "env_steps_measured": steps, "compile_s": compile_s,
@@ -258,11 +268,17 @@ def write_section(path: str, name: str, text: str) -> None:
     os.replace(tmp, path)
 
 
+def _variant(r: dict) -> str:
+    return (" (stock MJX line search)" if r.get("stock_mjx") else "") + (
+        " (plain vmap)" if r.get("plain_vmap") else "")
+
+
 def _row_md(r: dict, scaling: float | None) -> str:
     def f(x, fmt="{:,.0f}"):
         return "–" if x is None else fmt.format(x)
 
-    return (f"| {r['env']} | {r['method']} | {r['preset']} | {r['seeds']} | {f(r['compile_s'], '{:.1f}')} | "
+    env = r["env"] + _variant(r)
+    return (f"| {env} | {r['method']} | {r['preset']} | {r['seeds']} | {f(r['compile_s'], '{:.1f}')} | "
             f"{f(r['steps_per_s_total'])} | {f(r['steps_per_s_per_seed'])} | {f(r['env_alone_steps_per_s'])} | "
             f"{f(r['updates_alone_per_s'])} | {f(r['overhead_ratio'], '{:.2f}')} | {f(scaling, '{:.2f}')} | "
             f"{f(r['eval_s'], '{:.2f}')} | {f(r['buffer_mib'])} | {f(r['rss_growth_mib'])} | "
@@ -271,15 +287,16 @@ def _row_md(r: dict, scaling: float | None) -> str:
 
 def seed_scaling(rows: list[dict]) -> dict:
     """Total throughput at n seeds / at 1 seed, per (env, method, preset)."""
-    base = {(r["env"], r["method"], r["preset"]): r["steps_per_s_total"] for r in rows if r["seeds"] == 1}
-    return {id(r): r["steps_per_s_total"] / base[(r["env"], r["method"], r["preset"])]
-            for r in rows if (r["env"], r["method"], r["preset"]) in base}
+    group = lambda r: (r["env"], r["method"], r["preset"], _variant(r))
+    base = {group(r): r["steps_per_s_total"] for r in rows if r["seeds"] == 1}
+    return {id(r): r["steps_per_s_total"] / base[group(r)] for r in rows if group(r) in base}
 
 
 def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
     scaling = seed_scaling(rows)
+    dates = sorted({r.get("measured", "2026-11-23") for r in rows})  # rows without a date: the first run
     lines = [
-        f"`python -m experiments.bench` on {meta['date']} ({meta['machine']}; jax {meta['jax']}, "
+        f"`python -m experiments.bench`, rows measured on {', '.join(dates)} ({meta['machine']}; jax {meta['jax']}, "
         f"backend {meta['backend']}; {meta['repeats']} timed repeats per number, medians). Raw numbers, every "
         f"repeat: `{os.path.basename(meta['json'])}`.", "",
         "Columns: steady-state env steps/s of whole training (cycles only, evaluation excluded) in total and per "
@@ -294,6 +311,8 @@ def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     lines += [_row_md(r, scaling.get(id(r))) for r in rows]
+    if len(dates) > 1:
+        lines += ["", "Rows of different dates ran under different machine load: compare ratios within a date."]
     write_section(path, "training", "\n".join(lines))
 
 
@@ -313,6 +332,12 @@ def main(argv: list[str] | None = None) -> int:
                    help="raw numbers (default benchmarks.json; benchmarks_env_speed.json with --env-speed)")
     p.add_argument("--env-speed", action="store_true",
                    help="only environment stepping: ours (8 vmapped envs) vs gymnasium's own, all tasks")
+    p.add_argument("--stock-mjx", action="store_true",
+                   help="MuJoCo tasks with MJX's stock line search (early_exit_linesearch=False): the 'before' "
+                        "rows of the line-search change, kept next to the default rows")
+    p.add_argument("--plain-vmap", action="store_true",
+                   help="vmap the seeds without naming the axis: every episode-start branch runs at every step "
+                        "(the 'before' rows of that change, kept next to the default rows)")
     p.add_argument("--append", action="store_true", help="add rows to an existing --json (e.g. another grid)")
     p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
     args = p.parse_args(argv)
@@ -340,7 +365,8 @@ def main(argv: list[str] | None = None) -> int:
         args.envs, args.seeds = "pendulum", "1,8"
     envs_ = args.envs.split(",")
     specs = [{"env": e, "method": m, "preset": pr, "seeds": int(s), "repeats": args.repeats,
-              "target_steps": args.target_steps or (3000 if e == "pendulum" else 600)}
+              "target_steps": args.target_steps or (3000 if e == "pendulum" else 600),
+              "stock_mjx": args.stock_mjx and e != "pendulum", "plain_vmap": args.plain_vmap}
              for e in envs_ for m in args.methods.split(",") for pr in args.presets.split(",")
              for s in args.seeds.split(",")]
     for s in specs:
@@ -352,7 +378,7 @@ def main(argv: list[str] | None = None) -> int:
         with open(json_path) as f:
             rows = json.load(f)["rows"]
     for i, spec in enumerate(specs):
-        label = f"{spec['env']} {spec['method']} {spec['preset']} x{spec['seeds']}"
+        label = f"{spec['env']} {spec['method']} {spec['preset']} x{spec['seeds']}{_variant(spec)}"
         print(f"[{i + 1}/{len(specs)}] {label} ...", flush=True)
         res = subprocess.run([sys.executable, "-m", "experiments.bench", "--one", json.dumps(spec)],
                              capture_output=True, text=True)
@@ -361,7 +387,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"  failed: {res.stderr[-2000:]}", file=sys.stderr)
             continue
         r = json.loads(line[0][len("BENCH_RESULT "):])
-        key = lambda x: (x["env"], x["method"], x["preset"], x["seeds"])
+        key = lambda x: (x["env"], x["method"], x["preset"], x["seeds"], _variant(x))
         rows = [x for x in rows if key(x) != key(r)] + [r]  # a re-measured configuration replaces the old row
         print(f"  compile {r['compile_s']:.1f} s | {r['steps_per_s_total']:,.0f} steps/s total | env alone "
               f"{r['env_alone_steps_per_s']:,.0f} | updates alone {r['updates_alone_per_s']:,.0f}/s | overhead "
@@ -373,7 +399,7 @@ def main(argv: list[str] | None = None) -> int:
     scaling = seed_scaling(rows)
     for r in rows:
         if r["seeds"] == 8 and id(r) in scaling:
-            print(f"{r['env']} {r['method']} {r['preset']}: 8-seed scaling {scaling[id(r)]:.2f}x")
+            print(f"{_row_md(r, None).split(' | ')[0][2:]} {r['method']} {r['preset']}: 8-seed scaling {scaling[id(r)]:.2f}x")
     print(f"wrote {args.out} and {json_path}")
     return 0
 

@@ -7,8 +7,12 @@
 
 Each grid cell is one ``experiments.run.main`` call writing
 ``<runs-dir>/<preset>/<task>/<method>``, run one after another in the paper's
-task order (InvertedDoublePendulum first). A cell whose ``summary.json``
-exists is skipped; one with a checkpoint but no summary is resumed (with the
+task order (InvertedDoublePendulum first). Run folders are not committed
+(checkpoints are large); every finished cell's results (config, metrics,
+summary, provenance, a thinned state-visitation sample) are copied into the
+committed archive ``<results-dir>/cells/<task>/<method>`` when the artefacts
+are rebuilt and as soon as a cell finishes. A cell whose ``summary.json`` exists in either
+place is skipped; one with a checkpoint but no summary is resumed (with the
 same explicit options, so ``--resume`` checks they match); one with neither
 (killed before its first checkpoint) is started again. Next to each cell's
 run outputs, ``reproduce.json`` records the commit, the machine, the command
@@ -141,6 +145,9 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         out = cell_dir(args.runs_dir, args.preset, task, method)
         state = cell_state(out)
         tag = f"[{i}/{len(cells)}] {args.preset}/{task}/{method}"
+        archived = os.path.join(artefacts.archive_dir_for(args.results_dir, args.preset), task, method)
+        if state == "new" and os.path.exists(os.path.join(archived, "summary.json")):
+            out, state = archived, "done"  # finished in an earlier clone; its run folder is not committed
         if state == "done":
             with open(os.path.join(out, "summary.json")) as f:
                 s = json.load(f)
@@ -164,6 +171,8 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
             code = 130
         if os.path.isdir(out):
             _write_cell_record(out, argv, code, time.perf_counter() - t0)
+            if artefacts.archive_cell(out, archived, method):
+                print(f"{tag}: finished; results archived in {archived}", flush=True)
         report[(task, method)] = {0: "ran" if state != "resume" else "resumed"}.get(code, f"exit {code}")
         if code == 130:
             print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)

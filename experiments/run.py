@@ -237,7 +237,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
 
     from metapg_jax import reporting, replay
     from metapg_jax.checkpoint import Checkpointer
-    from metapg_jax.train import make_train, seed_keys
+    from metapg_jax.train import SEED_AXIS, make_train, seed_keys, vmap_seeds
 
     num_seeds, seed = a["seeds"], a["seed"]
     main_process = jax.process_index() == 0
@@ -260,9 +260,9 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
           f"{jax.default_backend()} device(s); output {out}", flush=True)
 
     # The seed axis is sharded over all devices (a no-op with one device).
-    seeds_sharding = NamedSharding(Mesh(np.array(jax.devices()), ("seeds",)), PartitionSpec("seeds"))
+    seeds_sharding = NamedSharding(Mesh(np.array(jax.devices()), (SEED_AXIS,)), PartitionSpec(SEED_AXIS))
     t0 = time.perf_counter()
-    init_fn = jax.jit(jax.vmap(trainer.init), out_shardings=seeds_sharding)
+    init_fn = jax.jit(vmap_seeds(trainer.init), out_shardings=seeds_sharding)
     checkpointer = Checkpointer(os.path.join(out, "checkpoints"))
     start = 0
     if resume:
@@ -276,7 +276,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
               flush=True)
     else:
         state = init_fn(keys)
-    chunk_fn = jax.jit(jax.vmap(trainer.train_chunk), in_shardings=seeds_sharding,
+    chunk_fn = jax.jit(vmap_seeds(trainer.train_chunk), in_shardings=seeds_sharding,
                        out_shardings=seeds_sharding, donate_argnums=0).lower(state).compile()
     compile_s = time.perf_counter() - t0
     buffer_mb = num_seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20

@@ -10,7 +10,10 @@ Returns a ``Trainer`` with
 
 Both paths give the same numbers for the same key. Seeds are a ``jax.vmap``
 over keys of these functions; the host (``experiments.run``) jits the vmapped
-``train_chunk`` once and calls it once per evaluation interval.
+``train_chunk`` once and calls it once per evaluation interval. Vmap with
+``vmap_seeds`` (``axis_name=SEED_AXIS``): the numbers are the same with a plain
+``jax.vmap``, but rare per-env events (a new parameter-noise perturbation at an
+episode start) are then computed at every step (see ``any_over_seeds``).
 
 A *cycle* is the DDPG baseline's (``rollout_steps`` noisy-actor steps stored,
 then ``train_steps`` updates) or one meta-iteration of Algorithm 1
@@ -62,6 +65,28 @@ def all_finite(state: TrainState) -> jax.Array:
     if hasattr(state.explorer, "params"):
         trees.append(state.explorer.params)
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(trees)]))
+
+
+SEED_AXIS = "seeds"
+
+
+def vmap_seeds(fn, **kwargs):
+    """``jax.vmap`` over the seed axis, named ``SEED_AXIS`` (see ``any_over_seeds``)."""
+    return jax.vmap(fn, axis_name=SEED_AXIS, **kwargs)
+
+
+def any_over_seeds(flag: jax.Array) -> jax.Array:
+    """Whether ``flag`` holds for any seed of the batch: an unbatched predicate for ``lax.cond``.
+
+    Under ``vmap`` a ``lax.cond`` on a per-seed predicate becomes a ``select`` that computes both
+    branches for every seed at every call. ``lax.cond(any_over_seeds(p), lambda: where(p, a(), b),
+    lambda: b)`` gives the same values and runs ``a`` only when some seed needs it. Outside a
+    ``vmap_seeds`` (one seed, or a plain ``jax.vmap``) the axis is unbound and ``flag`` is returned.
+    """
+    try:
+        return jax.lax.pmax(flag.astype(jnp.int32), SEED_AXIS) > 0
+    except NameError:  # no vmap named SEED_AXIS around this trace
+        return flag
 
 
 def seed_keys(seed: int, num_seeds: int) -> jax.Array:
@@ -142,8 +167,13 @@ class Trainer:
 
         def policy(carry, obs, first, k):
             k_reset, k_act, k_rand = jax.random.split(k, 3)
-            carry = jax.lax.cond(first, lambda: noise_lib.episode_start(cfg.noise, carry, actor, k_reset),
-                                 lambda: carry)
+            # Episode starts are rare: the new perturbation (adaptive-param) is drawn only on steps
+            # where some seed starts an episode (any_over_seeds), and kept only for those seeds.
+            carry = jax.lax.cond(
+                any_over_seeds(first),
+                lambda: jax.tree.map(lambda new, old: jnp.where(first, new, old),
+                                     noise_lib.episode_start(cfg.noise, carry, actor, k_reset), carry),
+                lambda: carry)
             action, carry = noise_lib.act(cfg.noise, carry, ddpg.actor_apply, actor,
                                           ddpg.normalize(normalizer, obs), k_act)
             return jnp.where(warm, self.random_action(k_rand), action), carry, None

@@ -10,6 +10,7 @@ import csv
 import json
 import math
 import os
+import shutil
 
 import numpy as np
 import pytest
@@ -250,6 +251,24 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     assert (runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").exists()
     calls = json.loads((runs / "paper" / "pendulum" / "ddpg-paramnoise" / "reproduce.json").read_text())["calls"]
     assert len(calls) == 2 and "--resume" in calls[1]["argv"]
+
+    # A fresh clone: no run folders, only the committed archive. Nothing is rerun and the table is the same.
+    archived = results / "cells" / "pendulum" / "ddpg-paramnoise"
+    assert (archived / "summary.json").exists() and (archived / "metrics.jsonl").exists()
+    with np.load(archived / "visits.npz") as v:
+        assert v["explore_late"].shape[-2] <= artefacts.ARCHIVE_VISITS_PER_SEED
+    before = json.loads((results / "table2.json").read_text())["rows"]
+    shutil.rmtree(runs)
+    assert reproduce.main(argv) == 0
+    out = capsys.readouterr().out
+    assert out.count("done, skipped") == 2 and "grid: 2 skipped" in out and not runs.exists()
+    after = json.loads((results / "table2.json").read_text())["rows"]
+    strip = lambda rows: [{m: {k: v for k, v in c.items() if k != "run_dir"} for m, c in r["methods"].items()}
+                          for r in rows]
+    assert strip(after) == strip(before)
+    assert "results/cells/pendulum/meta-independent" in next(
+        r for r in after if r["task"] == "pendulum")["methods"]["meta-independent"]["run_dir"]
+    assert (results / "visitation_pendulum.png").exists()
 
     # Artefacts only, modern preset: nothing stored there, every cell "not run", own folder.
     assert reproduce.main(["--artefacts-only", "--preset", "modern", "--runs-dir", str(runs),

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from metapg_jax.config import make_config
-from metapg_jax.train import make_train, seed_keys
+from metapg_jax.train import make_train, seed_keys, vmap_seeds
 from tests.helpers import tiny_config
 
 
@@ -23,7 +23,7 @@ def test_chunk_compiles_once_and_state_stays_finite(method):
     trainer = make_train(cfg)
     traced = chex.assert_max_traces(n=1)(trainer.train_chunk)
     chunk = jax.jit(jax.vmap(traced))
-    state = jax.jit(jax.vmap(trainer.init))(seed_keys(0, 2))
+    state = jax.jit(vmap_seeds(trainer.init))(seed_keys(0, 2))
     for _ in range(cfg.num_chunks):
         state, metrics = chunk(state)
     chex.assert_tree_all_finite(_strip_nan(state))
@@ -37,9 +37,9 @@ def test_chunked_and_single_scan_agree(method):
     cfg = tiny_config(method)
     trainer = make_train(cfg)
     keys = seed_keys(1, 2)
-    full_state, full_metrics = jax.jit(jax.vmap(trainer.train))(keys)
-    state = jax.jit(jax.vmap(trainer.init))(keys)
-    chunk = jax.jit(jax.vmap(trainer.train_chunk))
+    full_state, full_metrics = jax.jit(vmap_seeds(trainer.train))(keys)
+    state = jax.jit(vmap_seeds(trainer.init))(keys)
+    chunk = jax.jit(vmap_seeds(trainer.train_chunk))
     returns = []
     for _ in range(cfg.num_chunks):
         state, m = chunk(state)
@@ -52,7 +52,7 @@ def test_chunked_and_single_scan_agree(method):
 def test_seeds_differ_and_do_not_depend_on_seed_count():
     cfg = tiny_config("ddpg", steps=300)
     trainer = make_train(cfg)
-    run = jax.jit(jax.vmap(trainer.train))
+    run = jax.jit(vmap_seeds(trainer.train))
     s3, _ = run(seed_keys(0, 3))
     s1, _ = run(seed_keys(0, 1))
     k = lambda s: np.asarray(s.student.actor["params"]["dense_0"]["kernel"])
@@ -75,7 +75,7 @@ def test_warmup_uses_random_actions_and_skips_updates():
 def _learning_run(method, steps, seeds=8):
     cfg = make_config("pendulum", method, steps=steps, overrides={"run.eval_every": 3000})
     trainer = make_train(cfg)
-    _, metrics = jax.jit(jax.vmap(trainer.train))(seed_keys(0, seeds))
+    _, metrics = jax.jit(vmap_seeds(trainer.train))(seed_keys(0, seeds))
     return np.asarray(metrics["eval_return"]).mean(-1)  # (seeds, evals)
 
 
@@ -102,3 +102,27 @@ def test_meta_learns_pendulum():
     returns = _learning_run("meta", 15000)
     baseline = _random_policy_return()
     assert returns[:, -1].mean() > baseline + 500, (returns, baseline)
+
+
+def test_any_over_seeds_reduces_the_named_seed_axis_only():
+    from metapg_jax.train import any_over_seeds
+
+    flags = jnp.array([False, True, False])
+    np.testing.assert_array_equal(vmap_seeds(any_over_seeds)(flags), [True, True, True])
+    np.testing.assert_array_equal(jax.vmap(any_over_seeds)(flags), flags)  # unnamed axis: per seed
+    assert not bool(jax.jit(any_over_seeds)(jnp.array(False)))  # no vmap at all
+
+
+def test_param_noise_episode_starts_same_numbers_with_named_seed_axis():
+    # vmap_seeds draws a new actor perturbation only on steps where some seed starts an episode;
+    # a plain vmap draws it at every step and keeps it where an episode starts. Same numbers.
+    cfg = tiny_config("ddpg", steps=600)
+    assert cfg.noise.kind == "adaptive-param"
+    trainer = make_train(cfg)
+    a = jax.jit(vmap_seeds(trainer.train))(seed_keys(0, 3))
+    b = jax.jit(jax.vmap(trainer.train))(seed_keys(0, 3))
+    for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b)):
+        np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
+    perturbed = a[0].explorer.perturbed
+    assert not all(np.array_equal(p, q) for p, q in zip(jax.tree.leaves(perturbed),
+                                                          jax.tree.leaves(a[0].student.actor)))
