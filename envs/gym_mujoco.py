@@ -37,15 +37,17 @@ once the search has converged. Under ``vmap`` a ``cond`` with a batched
 predicate becomes a ``select``, so all 50 steps are computed for every env on
 every solver iteration, whatever the search needed. Measured on random-action
 rollouts (8 envs, uniform / N(0, 0.3) / bang-bang actions): the search stops
-after 0-1 steps on IDP, and after 0-9 steps on HalfCheetah except for
-searches that bisect down to float32 resolution (24-25 steps, ~13%). While
+after 0-1 steps on IDP, and after 0-9 steps on Hopper and HalfCheetah except
+for searches that bisect down to float32 resolution (24-25 steps, 13-18% of
+them). While
 tracing our ``step`` and ``reset`` we therefore swap MJX's private
 ``solver._while_loop_scan`` for a ``lax.while_loop`` with the same condition
 and the same cap (``_while_loop_capped``); under ``vmap`` a while loop runs
 until the slowest env of the batch has converged and keeps each env's own
 result. Same model, same options, same per-env iterations: the physics is
-unchanged (tests/test_envs_mujoco.py asserts equality with the stock scan on
-every task, and the gymnasium cross-checks run with it on). Only MJX's
+unchanged: tests/test_envs_mujoco.py asserts bitwise equality with the stock
+scan on IDP and Hopper, ``python -m experiments.bench --env-speed`` checks it
+on every task, and the gymnasium cross-checks run with it on. Only MJX's
 reverse-mode differentiability through the line search is lost, which
 nothing here uses. ``early_exit_linesearch=False`` gives stock MJX.
 """
@@ -257,8 +259,8 @@ class InvertedPendulum(GymMujocoEnv):
         self,
         xml_file: str = "inverted_pendulum.xml",
         frame_skip: int = 2,
-        early_exit_linesearch: bool = True,
         reset_noise_scale: float = 0.01,
+        early_exit_linesearch: bool = True,
     ):
         super().__init__(xml_file, frame_skip, early_exit_linesearch)
         self._reset_noise_scale = reset_noise_scale
@@ -299,9 +301,9 @@ class InvertedDoublePendulum(GymMujocoEnv):
         self,
         xml_file: str = "inverted_double_pendulum.xml",
         frame_skip: int = 5,
-        early_exit_linesearch: bool = True,
         healthy_reward: float = 10.0,
         reset_noise_scale: float = 0.1,
+        early_exit_linesearch: bool = True,
     ):
         super().__init__(xml_file, frame_skip, early_exit_linesearch)
         self._healthy_reward = healthy_reward
@@ -382,7 +384,6 @@ class Hopper(_LocomotionMixin, GymMujocoEnv):
         self,
         xml_file: str = "hopper.xml",
         frame_skip: int = 4,
-        early_exit_linesearch: bool = True,
         forward_reward_weight: float = 1.0,
         ctrl_cost_weight: float = 1e-3,
         healthy_reward: float = 1.0,
@@ -392,6 +393,7 @@ class Hopper(_LocomotionMixin, GymMujocoEnv):
         healthy_angle_range: Tuple[float, float] = (-0.2, 0.2),
         reset_noise_scale: float = 5e-3,
         exclude_current_positions_from_observation: bool = True,
+        early_exit_linesearch: bool = True,
     ):
         super().__init__(xml_file, frame_skip, early_exit_linesearch)
         self._forward_reward_weight = forward_reward_weight
@@ -460,11 +462,11 @@ class HalfCheetah(_LocomotionMixin, GymMujocoEnv):
         self,
         xml_file: str = "half_cheetah.xml",
         frame_skip: int = 5,
-        early_exit_linesearch: bool = True,
         forward_reward_weight: float = 1.0,
         ctrl_cost_weight: float = 0.1,
         reset_noise_scale: float = 0.1,
         exclude_current_positions_from_observation: bool = True,
+        early_exit_linesearch: bool = True,
     ):
         super().__init__(xml_file, frame_skip, early_exit_linesearch)
         self._forward_reward_weight = forward_reward_weight
@@ -509,9 +511,9 @@ class Reacher(GymMujocoEnv):
         self,
         xml_file: str = "reacher.xml",
         frame_skip: int = 2,
-        early_exit_linesearch: bool = True,
         reward_dist_weight: float = 1.0,
         reward_control_weight: float = 1.0,
+        early_exit_linesearch: bool = True,
     ):
         super().__init__(xml_file, frame_skip, early_exit_linesearch)
         self._reward_dist_weight = reward_dist_weight

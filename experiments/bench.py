@@ -268,6 +268,10 @@ def write_section(path: str, name: str, text: str) -> None:
     os.replace(tmp, path)
 
 
+def _date(r: dict) -> str:
+    return r.get("measured", "2026-11-23")  # rows without a date come from the first run
+
+
 def _variant(r: dict) -> str:
     return (" (stock MJX line search)" if r.get("stock_mjx") else "") + (
         " (plain vmap)" if r.get("plain_vmap") else "")
@@ -278,7 +282,7 @@ def _row_md(r: dict, scaling: float | None) -> str:
         return "–" if x is None else fmt.format(x)
 
     env = r["env"] + _variant(r)
-    return (f"| {env} | {r['method']} | {r['preset']} | {r['seeds']} | {f(r['compile_s'], '{:.1f}')} | "
+    return (f"| {env} | {r['method']} | {r['preset']} | {_date(r)} | {r['seeds']} | {f(r['compile_s'], '{:.1f}')} | "
             f"{f(r['steps_per_s_total'])} | {f(r['steps_per_s_per_seed'])} | {f(r['env_alone_steps_per_s'])} | "
             f"{f(r['updates_alone_per_s'])} | {f(r['overhead_ratio'], '{:.2f}')} | {f(scaling, '{:.2f}')} | "
             f"{f(r['eval_s'], '{:.2f}')} | {f(r['buffer_mib'])} | {f(r['rss_growth_mib'])} | "
@@ -287,14 +291,16 @@ def _row_md(r: dict, scaling: float | None) -> str:
 
 def seed_scaling(rows: list[dict]) -> dict:
     """Total throughput at n seeds / at 1 seed, per (env, method, preset)."""
-    group = lambda r: (r["env"], r["method"], r["preset"], _variant(r))
+    group = lambda r: (r["env"], r["method"], r["preset"], _variant(r), _date(r))  # ratios within one date
     base = {group(r): r["steps_per_s_total"] for r in rows if r["seeds"] == 1}
     return {id(r): r["steps_per_s_total"] / base[group(r)] for r in rows if group(r) in base}
 
 
 def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
     scaling = seed_scaling(rows)
-    dates = sorted({r.get("measured", "2026-11-23") for r in rows})  # rows without a date: the first run
+    dates = sorted({_date(r) for r in rows})
+    rows = sorted(rows, key=lambda r: (r["env"] != "pendulum", r["env"], r["preset"], r["method"], _date(r),
+                                       _variant(r), r["seeds"]))
     lines = [
         f"`python -m experiments.bench`, rows measured on {', '.join(dates)} ({meta['machine']}; jax {meta['jax']}, "
         f"backend {meta['backend']}; {meta['repeats']} timed repeats per number, medians). Raw numbers, every "
@@ -306,13 +312,15 @@ def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
         "after imports, and peak RSS.", "",
         f"Targets: overhead <= {TARGETS['overhead']}, 8-seed scaling >= {TARGETS['scaling_8']}x, compile <= "
         f"{TARGETS['compile_s']:.0f} s, peak memory <= {TARGETS['rss_over_buffer']}x the buffers' bytes.", "",
-        "| task | method | preset | seeds | compile s | steps/s total | steps/s per seed | env alone steps/s | "
+        "| task | method | preset | measured | seeds | compile s | steps/s total | steps/s per seed | env alone steps/s | "
         "updates alone /s | overhead | scaling | eval s | buffers MiB | RSS growth MiB | peak RSS MiB |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     lines += [_row_md(r, scaling.get(id(r))) for r in rows]
     if len(dates) > 1:
-        lines += ["", "Rows of different dates ran under different machine load: compare ratios within a date."]
+        lines += ["", "Rows of different dates ran under different machine load (this shared machine was ~2x "
+                  "slower on DDPG updates on the later date): compare ratios within a date; scaling is "
+                  "computed within a date."]
     write_section(path, "training", "\n".join(lines))
 
 
