@@ -5,7 +5,10 @@
 
 Reads a grid of run folders laid out as ``<runs-dir>/<preset>/<task>/<method>``
 (what ``experiments.reproduce`` writes; each one an ``experiments.run`` output
-folder) and writes, under the results folder:
+folder), copies every finished one into the committed archive
+``<results>/cells/<task>/<method>`` (``archive_cell``; run folders hold large
+checkpoints and are not committed), reads cells without a finished run folder
+from that archive, and writes, under the results folder:
 
 * ``table2.md`` / ``table2.json`` / ``table2_per_seed.csv``: the paper's Table 2
   (rows = tasks, columns = methods): final evaluation return mean ± std over
@@ -755,7 +758,9 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
     have = set(manifest["files"])
     lines = [f"# Results ({preset} preset)", "",
              f"Rebuilt by `python -m experiments.reproduce --artefacts-only` (or `python -m experiments.artefacts`) "
-             f"from the run folders under `{manifest['build']['runs_dir']}/{preset}/<task>/<method>`. "
+             f"from the run folders under `{manifest['build']['runs_dir']}/{preset}/<task>/<method>` (not committed) "
+             f"and, for cells without a finished run folder, the committed copies of finished cells in "
+             f"`cells/<task>/<method>` (config, metrics, summary, provenance, thinned visitation sample). "
              f"{len(done)} finished and {len(cells) - len(done)} unfinished cells are stored; "
              f"{len(manifest['not_run'])} cells of the grid were not run.", "",
              "| file | content |", "|---|---|"]
