@@ -11,8 +11,9 @@ task order (InvertedDoublePendulum first). Run folders are not committed
 (checkpoints are large); every finished cell's results (config, metrics,
 summary, provenance, a thinned state-visitation sample) are copied into the
 committed archive ``<results-dir>/cells/<task>/<method>`` when the artefacts
-are rebuilt and as soon as a cell finishes. A cell whose ``summary.json`` exists in either
-place is skipped; one with a checkpoint but no summary is resumed (with the
+are rebuilt and as soon as a cell finishes. A cell whose ``summary.json``
+exists is skipped (so is one with no run folder whose results are archived);
+one with a checkpoint but no summary is resumed (with the
 same explicit options, so ``--resume`` checks they match); one with neither
 (killed before its first checkpoint) is started again. Next to each cell's
 run outputs, ``reproduce.json`` records the commit, the machine, the command
