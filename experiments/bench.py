@@ -269,7 +269,7 @@ def write_section(path: str, name: str, text: str) -> None:
 
 
 def _date(r: dict) -> str:
-    return r.get("measured", "2026-11-23")  # rows without a date come from the first run
+    return r.get("measured", "undated")
 
 
 def _variant(r: dict) -> str:
@@ -318,9 +318,8 @@ def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
     ]
     lines += [_row_md(r, scaling.get(id(r))) for r in rows]
     if len(dates) > 1:
-        lines += ["", "Rows of different dates ran under different machine load (this shared machine was ~2x "
-                  "slower on DDPG updates on the later date): compare ratios within a date; scaling is "
-                  "computed within a date."]
+        lines += ["", "Rows of different dates may have run under different machine load: compare ratios "
+                  "within a date; scaling is computed within a date."]
     write_section(path, "training", "\n".join(lines))
 
 
@@ -354,6 +353,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     import jax
 
+    from metapg_jax import reporting
+
     json_path = args.json or ("benchmarks_env_speed.json" if args.env_speed else "benchmarks.json")
     meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
@@ -365,8 +366,7 @@ def main(argv: list[str] | None = None) -> int:
         for task in envs.TASKS:
             results.append(measure_env_speed(task, repeats=args.repeats))
             print(env_speed_markdown(results, meta).splitlines()[-1], flush=True)
-            with open(json_path, "w") as f:
-                json.dump({"meta": meta, "env_speed": results}, f, indent=1)
+            reporting.write_json_atomic(json_path, {"meta": meta, "env_speed": results})
             write_section(args.out, "env-speed", env_speed_markdown(results, meta))
         return 0
     if args.quick:
@@ -401,8 +401,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['env_alone_steps_per_s']:,.0f} | updates alone {r['updates_alone_per_s']:,.0f}/s | overhead "
               f"{r['overhead_ratio']:.2f} | eval {r['eval_s']:.2f} s | RSS +{r['rss_growth_mib']:,.0f} MiB "
               f"(buffers {r['buffer_mib']:,.0f})", flush=True)
-        with open(json_path, "w") as f:  # rewritten after every row: a long benchmark never loses rows
-            json.dump({"meta": meta, "rows": rows}, f, indent=1)
+        # rewritten (atomically) after every row: a long benchmark never loses rows
+        reporting.write_json_atomic(json_path, {"meta": meta, "rows": rows})
         write_markdown(rows, args.out, meta)
     scaling = seed_scaling(rows)
     for r in rows:
