@@ -75,6 +75,16 @@ METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta
 METHOD_COLORS = {"meta-independent": "tab:red", "meta-variance": "tab:orange",
                  "ddpg-paramnoise": "tab:blue", "ddpg-normal": "tab:cyan"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
+# The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
+# for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/config.py).
+BASELINES = {"paper": BASELINE, "modern": "ddpg-normal"}
+
+
+def baseline_for(preset: str) -> str:
+    """Grid method name of the DDPG baseline of ``preset``'s comparisons (Welch test, thresholds, figures)."""
+    if preset not in BASELINES:
+        raise ValueError(f"unknown preset {preset!r}; valid presets: {', '.join(BASELINES)}")
+    return BASELINES[preset]
 
 # The paper's Table 2 (Xu et al., 2018): final return mean ± std, Meta vs DDPG; 3 seeds, gym v1 tasks.
 PAPER_TABLE2 = {
@@ -92,7 +102,11 @@ FINAL_DEFINITION = ("final return of a seed = mean of its last max(1, floor(T/10
                     "deterministic episodes of the student")
 STATS_DEFINITION = ("mean ± std: over seeds, sample std (ddof=1); 95% CI: mean ± t(0.975, n-1)·s/√n (Student t "
                     "over the n seeds); p: two-sided Welch t-test (scipy.stats.ttest_ind, equal_var=False) of the "
-                    "seeds' final returns, Meta (independent) vs DDPG (param noise)")
+                    "seeds' final returns, Meta (independent) vs {baseline}")
+
+
+def stats_definition(baseline: str = BASELINE) -> str:
+    return STATS_DEFINITION.format(baseline=METHOD_NAMES.get(baseline, baseline))
 
 
 # ---------------------------------------------------------------------------------------------- statistics
@@ -266,9 +280,10 @@ def archive_dir_for(results_dir: str, preset: str) -> str:
     return os.path.join(results_dir_for(results_dir, preset), "cells")
 
 
-def archive_cell(run_path: str, archive_path: str, method: str) -> bool:
+def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = BASELINE) -> bool:
     """Copies a finished run folder's results into the archive (atomically, file by file); False if the
-    run is not finished. Re-archiving a cell replaces its files."""
+    run is not finished. Re-archiving a cell replaces its files. The visitation sample is kept for the
+    methods of the visitation figure only (Meta independent and ``baseline``)."""
     import shutil
 
     if not os.path.exists(os.path.join(run_path, "summary.json")):
@@ -281,7 +296,7 @@ def archive_cell(run_path: str, archive_path: str, method: str) -> bool:
             shutil.copyfile(src, tmp)
             os.replace(tmp, os.path.join(archive_path, name))
     visits = os.path.join(run_path, "visits.npz")
-    if method in (META, BASELINE) and os.path.exists(visits):
+    if method in (META, baseline) and os.path.exists(visits):
         with np.load(visits) as v:
             thinned = {}
             for k, x in v.items():
@@ -331,7 +346,7 @@ def build_info(runs_dir: str) -> dict:
 
 # ---------------------------------------------------------------------------------------------- Table 2
 
-def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str]) -> list[dict]:
+def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str], baseline: str = BASELINE) -> list[dict]:
     """One dict per task with, per method, the statistics of the finished runs (None: not run / incomplete)."""
     rows = []
     for task in tasks:
@@ -356,7 +371,7 @@ def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str]) -> 
                 "base_seed": r.run_args.get("seed"), "per_seed": [float(v) for v in final],
                 "run_commit": r.provenance.get("commit"), "backend": r.info.get("backend"),
                 "wall_seconds": cell_provenance(r)["wall_seconds"], "run_dir": r.path}
-        a, b = row["methods"].get(META, {}), row["methods"].get(BASELINE, {})
+        a, b = row["methods"].get(META, {}), row["methods"].get(baseline, {})
         if a.get("status") == "done" and b.get("status") == "done":
             t, p = welch_test(a["per_seed"], b["per_seed"])
             row["welch"] = {"t": t, "p": p, "difference": a["mean"] - b["mean"]}
@@ -398,11 +413,16 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     """table2.md, table2.json and table2_per_seed.csv from ``table2_rows``; returns the paths."""
     os.makedirs(out_dir, exist_ok=True)
     names = [METHOD_NAMES.get(m, m) for m in methods]
+    baseline = baseline_for(preset)
+    protocol = ("" if preset == "paper" else
+                f" The paper's numbers are for its own protocol (the paper preset's networks, noise and budgets), "
+                f"not for the {preset} preset: they are there for scale only.")
     md = [f"# Table 2: final evaluation return ({preset} preset)", "",
           f"Rows: tasks; columns: methods, mean ± std over the seeds run here, next to the paper's Table 2 "
           f"(Meta / DDPG; {PAPER_SEEDS} seeds, gym v1 tasks, so not directly comparable: our tasks are gymnasium "
-          f"v5 models on MJX). \"not run\": no finished run is stored for that cell (nothing is estimated).", "",
-          f"- {FINAL_DEFINITION}.", f"- {STATS_DEFINITION}.", "",
+          f"v5 models on MJX). \"not run\": no finished run is stored for that cell (nothing is estimated)."
+          + protocol, "",
+          f"- {FINAL_DEFINITION}.", f"- {stats_definition(baseline)}.", "",
           "| task | " + " | ".join(names) + " | paper Meta | paper DDPG | budget (env steps / seed) | seeds run |",
           "|---|" + "---|" * len(names) + "---|---|---|---|"]
     for row in rows:
@@ -416,7 +436,7 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
         md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " + " | ".join(cells) +
                   f" | {pm} | {pd} | {budget} | {seeds} |")
     md += ["", "## 95% confidence intervals and Welch's t-test", "",
-           "| task | " + " | ".join(names) + " | Meta (ind.) − DDPG (param) | Welch t | p |",
+           "| task | " + " | ".join(names) + f" | Meta (ind.) − {METHOD_NAMES.get(baseline, baseline)} | Welch t | p |",
            "|---|" + "---|" * len(names) + "---|---|---|"]
     for row in rows:
         w = row["welch"]
@@ -428,7 +448,8 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     with open(paths[0], "w") as f:
         f.write("\n".join(md))
     with open(paths[1], "w") as f:
-        json.dump({"preset": preset, "final_definition": FINAL_DEFINITION, "statistics": STATS_DEFINITION,
+        json.dump({"preset": preset, "baseline": baseline, "final_definition": FINAL_DEFINITION,
+                   "statistics": stats_definition(baseline),
                    "paper_seeds": PAPER_SEEDS, "rows": rows}, f, indent=2, default=_json_default)
     with open(paths[2], "w", newline="") as f:
         w = csv.writer(f)
@@ -515,8 +536,8 @@ def write_curves(results: dict, tasks: Sequence[str], methods: Sequence[str], ou
 
 def write_teacher_designs(results: dict, out_dir: str, build: dict, preset: str,
                           task: str = "inverted_double_pendulum") -> list[str]:
-    """Independent vs variance teacher vs DDPG (param noise) curves on one task (Figure 2)."""
-    methods = ("meta-independent", "meta-variance", BASELINE)
+    """Independent vs variance teacher vs the preset's DDPG baseline, curves on one task (Figure 2)."""
+    methods = ("meta-independent", "meta-variance", baseline_for(preset))
     if not any((task, m) in results for m in methods):
         return []
     plt = _plt()
@@ -533,11 +554,12 @@ def write_teacher_designs(results: dict, out_dir: str, build: dict, preset: str,
 
 # ---------------------------------------------------------------------------------------------- steps to threshold
 
-def steps_to_threshold_rows(results: dict, tasks: Sequence[str], methods: Sequence[str]) -> list[dict]:
-    """Per task and method: first env step where the seed-mean curve reaches DDPG (param noise)'s best seed mean."""
+def steps_to_threshold_rows(results: dict, tasks: Sequence[str], methods: Sequence[str],
+                            baseline: str = BASELINE) -> list[dict]:
+    """Per task and method: first env step where the seed-mean curve reaches the DDPG baseline's best seed mean."""
     rows = []
     for task in tasks:
-        base = results.get((task, BASELINE))
+        base = results.get((task, baseline))
         if base is None:
             continue
         base_mean = np.nanmean(base.values, 0)
@@ -565,8 +587,9 @@ def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset
         w.writeheader()
         for row in rows:
             w.writerow({**{k: ("" if row[k] is None else row[k]) for k in keys}, "build_commit": build_commit or ""})
+    baseline = METHOD_NAMES.get(baseline_for(preset), baseline_for(preset))
     md = [f"# Samples to reach the DDPG baseline's best ({preset} preset)", "",
-          "Threshold: the best value over evaluations of the DDPG (param noise) seed-mean evaluation-return curve. "
+          f"Threshold: the best value over evaluations of the {baseline} seed-mean evaluation-return curve. "
           "`step`: the first evaluation's env step at which a method's seed-mean curve reaches it; "
           "`ratio` = step / DDPG's own step (the paper: Meta needs about 1/6 of DDPG's samples on "
           "InvertedDoublePendulum). \"not reached\": never within the env steps run.", "",
@@ -580,7 +603,7 @@ def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset
         md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | {METHOD_NAMES.get(row['method'], row['method'])} "
                   f"| {fmt(row['threshold'])} | {step} | {bstep} | {ratio} | {run} | {row['seeds']} |")
     if not rows:
-        md.append("| (no task has a DDPG (param noise) run) | | | | | | | |")
+        md.append(f"| (no task has a {baseline} run) | | | | | | | |")
     md.append(footer)
     with open(paths[1], "w") as f:
         f.write("\n".join(md))
@@ -643,12 +666,12 @@ def embed_2d(x: np.ndarray, method: str = "tsne", seed: int = 0) -> np.ndarray:
 
 
 def write_visitation(results: dict, out_dir: str, build: dict, task: str | None = None, embedding: str = "tsne",
-                     points_per_panel: int = 500, seed: int = 0) -> list[str]:
-    """``visitation_<task>.png``: teacher / student (meta-independent) and DDPG (param noise) states, early and
+                     points_per_panel: int = 500, seed: int = 0, baseline: str = BASELINE) -> list[str]:
+    """``visitation_<task>.png``: teacher / student (meta-independent) and DDPG (``baseline``) states, early and
     late, jointly embedded in 2-D, with Gaussian-KDE contours (the paper's Figure 4)."""
     candidates = [task] if task else ["inverted_double_pendulum"] + [t for t in TASKS if t != "inverted_double_pendulum"]
     for t in candidates:
-        a, b = results.get((t, META)), results.get((t, BASELINE))
+        a, b = results.get((t, META)), results.get((t, baseline))
         if a is None or b is None:
             continue
         pa, pb = os.path.join(a.path, "visits.npz"), os.path.join(b.path, "visits.npz")
@@ -676,7 +699,7 @@ def write_visitation(results: dict, out_dir: str, build: dict, task: str | None 
     lo, hi = xy.min(0) - pad, xy.max(0) + pad
     gx, gy = np.meshgrid(np.linspace(lo[0], hi[0], 80), np.linspace(lo[1], hi[1], 80))
     cols = {"teacher": ("teacher (Meta, independent)", "tab:red"), "student": ("student (Meta's D1)", "tab:green"),
-            "ddpg": ("DDPG (param noise)", "tab:blue")}
+            "ddpg": (METHOD_NAMES.get(baseline, baseline), METHOD_COLORS.get(baseline, "tab:blue"))}
     fig, axes = plt.subplots(2, 3, figsize=(11, 7), dpi=110, sharex=True, sharey=True)
     for r, when in enumerate(("early", "late")):
         for c, who in enumerate(("teacher", "student", "ddpg")):
@@ -725,22 +748,25 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
     out_dir = results_dir_for(results_dir, preset)
     os.makedirs(out_dir, exist_ok=True)
     archive = archive_dir_for(results_dir, preset)
+    baseline = baseline_for(preset)
     for task in tasks:  # every finished run folder is (re)archived before anything is read
         for method in methods:
-            archive_cell(os.path.join(runs_dir, preset, task, method), os.path.join(archive, task, method), method)
+            archive_cell(os.path.join(runs_dir, preset, task, method), os.path.join(archive, task, method), method,
+                         baseline)
     results = collect(os.path.join(runs_dir, preset), tasks, methods, archive_dir=archive)
     build = build_info(runs_dir)
     build["preset"] = preset
     if extra_provenance:
         build.update(extra_provenance)
     footer = provenance_footer(build, results.values())
-    rows = table2_rows(results, tasks, methods)
+    rows = table2_rows(results, tasks, methods, baseline)
     files = write_table2(rows, methods, out_dir, footer, preset, build["commit"])
     files += write_curves(results, tasks, methods, out_dir, build, preset)
-    files += write_steps_to_threshold(steps_to_threshold_rows(results, tasks, methods), out_dir, footer, preset,
+    files += write_steps_to_threshold(steps_to_threshold_rows(results, tasks, methods, baseline), out_dir, footer, preset,
                                       build["commit"])
     files += write_teacher_designs(results, out_dir, build, preset)
-    files += write_visitation(results, out_dir, build, visitation_task, embedding, points_per_panel)
+    files += write_visitation(results, out_dir, build, visitation_task, embedding, points_per_panel,
+                              baseline=baseline)
     manifest = {"build": build, "files": [os.path.relpath(p, out_dir) for p in files] + ["README.md"],
                 "cells": [cell_provenance(r) for r in results.values()],
                 "not_run": [[t, m] for t in tasks for m in methods if (t, m) not in results]}
@@ -753,6 +779,7 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
 def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequence[str], footer: str) -> str:
     """``README.md``: what each artefact is, which cells were run, and the headline numbers."""
     preset = manifest["build"]["preset"]
+    baseline = METHOD_NAMES.get(baseline_for(preset), baseline_for(preset))
     cells = manifest["cells"]
     done = [c for c in cells if c["complete"]]
     have = set(manifest["files"])
@@ -766,7 +793,7 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
              "| file | content |", "|---|---|"]
     desc = {
         "table2.md": "the paper's Table 2: final return mean ± std per task and method, 95% CIs, Welch p "
-                     "(Meta independent vs DDPG param noise), budget and seeds, next to the paper's numbers",
+                     f"(Meta (independent) vs {baseline}), budget and seeds, next to the paper's numbers",
         "table2.json": "the same, machine-readable (with per-seed final returns)",
         "table2_per_seed.csv": "per-seed final returns of every finished cell",
         "steps_to_threshold.md": "first env step at which each method's seed-mean curve reaches DDPG's best "
@@ -791,7 +818,7 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
     if "teacher_designs_idp.png" not in have:
         lines += ["", "No InvertedDoublePendulum run is stored, so `teacher_designs_idp.png` (Figure 2) is not built."]
     if not any(f.startswith("visitation_") for f in have):
-        lines += ["", "No task has both a Meta (independent) and a DDPG (param noise) run with `visits.npz`, so the "
+        lines += ["", f"No task has both a Meta (independent) and a {baseline} run with `visits.npz`, so the "
                       "state-visitation figure is not built."]
     lines += ["", "## Final return (mean ± std over seeds; see `table2.md` for definitions and CIs)", "",
               "| task | " + " | ".join(METHOD_NAMES.get(m, m) for m in methods) + " | Welch p |",

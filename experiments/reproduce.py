@@ -172,7 +172,7 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
             code = 130
         if os.path.isdir(out):
             _write_cell_record(out, argv, code, time.perf_counter() - t0)
-            if artefacts.archive_cell(out, archived, method):
+            if artefacts.archive_cell(out, archived, method, artefacts.baseline_for(args.preset)):
                 print(f"{tag}: finished; results archived in {archived}", flush=True)
         report[(task, method)] = {0: "ran" if state != "resume" else "resumed"}.get(code, f"exit {code}")
         if code == 130:

@@ -180,6 +180,34 @@ def test_figures_readme_and_manifest(fabricated):
     assert "teacher_designs_idp.png" in (res / "README.md").read_text()
 
 
+def test_modern_preset_compares_meta_with_its_own_gaussian_noise_ddpg(tmp_path):
+    """The modern preset's baseline is DDPG (normal noise): Welch test, thresholds and visitation use it."""
+    rng = np.random.default_rng(1)
+    steps = np.arange(1, 11) * 1000
+    data = {"meta-independent": rng.normal(900, 30, (3, 10)), "ddpg-normal": rng.normal(500, 40, (3, 10)),
+            "ddpg-paramnoise": rng.normal(100, 40, (3, 10))}
+    for method, values in data.items():
+        fabricate_run(tmp_path / "modern" / "hopper" / method, "hopper", method, values, steps, visit_obs=11)
+    results = tmp_path / "results"
+    artefacts.build_all(str(tmp_path), str(results), "modern", tasks=("hopper",), embedding="pca",
+                        points_per_panel=40)
+    table = json.loads((results / "modern" / "table2.json").read_text())
+    assert table["baseline"] == "ddpg-normal"
+    a, b = data["meta-independent"][:, -1], data["ddpg-normal"][:, -1]
+    assert table["rows"][0]["welch"]["p"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue)
+    md = (results / "modern" / "table2.md").read_text()
+    assert "Meta (ind.) − DDPG (normal noise)" in md and "for scale only" in md
+    with open(results / "modern" / "steps_to_threshold.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert float(rows[0]["threshold"]) == pytest.approx(data["ddpg-normal"].mean(0).max())
+    assert (results / "modern" / "visitation_hopper.png").exists()
+    archive = results / "modern" / "cells" / "hopper"
+    assert (archive / "ddpg-normal" / "visits.npz").exists()
+    assert not (archive / "ddpg-paramnoise" / "visits.npz").exists()
+    with pytest.raises(ValueError, match="unknown preset"):
+        artefacts.baseline_for("fancy")
+
+
 def test_visitation_groups_keep_only_recorded_states():
     v = {f"{w}_{t}": np.ones((2, 5, 3)) for w in ("explore", "student") for t in ("early", "late")}
     teacher = {**v, "explore_count": np.array([3, 10]), "student_count": np.array([5, 5])}
