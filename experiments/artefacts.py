@@ -329,7 +329,8 @@ def cell_provenance(r: RunResult) -> dict:
 def provenance_footer(build: dict, cells: Iterable[RunResult]) -> str:
     """Markdown lines: commit and machine of this build and of the runs used."""
     cells = list(cells)
-    commits = sorted({c.provenance.get("commit") or "unknown" for c in cells})
+    commits = sorted({commit for c in cells
+                      for commit in (c.provenance.get("commits") or [c.provenance.get("commit") or "unknown"])})
     lines = ["", "---", "",
              f"Built {build['built']} from `{build['runs_dir']}` at commit `{build['commit'] or 'unknown'}`"
              f"{' (uncommitted changes)' if build.get('dirty') else ''} on {build['machine']['platform']} "

@@ -120,8 +120,12 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
     return argv
 
 
-def _write_cell_record(out: str, argv: list[str], status: int, seconds: float) -> None:
-    """``reproduce.json`` in the cell: commit, machine, command, status and accumulated wall time."""
+def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, started: dict) -> None:
+    """``reproduce.json`` in the cell: commit, machine, command, status and accumulated wall time.
+
+    ``started`` is ``reporting.provenance()`` taken when the call began (the code that ran, even if
+    the checkout changed while it ran); every call (a resume is one) keeps its own commit, and the
+    top-level ``commit`` is the one the cell was started at (its config.json's)."""
     from metapg_jax import reporting
 
     path = os.path.join(out, "reproduce.json")
@@ -130,9 +134,11 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float) -
         with open(path) as f:
             old = json.load(f)
     calls = old.get("calls", []) + [{"argv": argv, "status": status, "wall_seconds": round(seconds, 2),
+                                     "commit": started["commit"], "dirty": started["dirty"],
                                      "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}]
+    first = {"commit": calls[0].get("commit", started["commit"]), "dirty": calls[0].get("dirty", started["dirty"])}
     reporting.write_json_atomic(path, {
-        **reporting.provenance(),
+        **started, **first, "commits": sorted({c["commit"] for c in calls if c.get("commit")}),
         "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 2), "calls": calls})
 
 
@@ -165,13 +171,15 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         if args.dry_run:
             report[(task, method)] = f"would {state}"
             continue
-        t0 = time.perf_counter()
+        from metapg_jax import reporting
+
+        started, t0 = reporting.provenance(), time.perf_counter()
         try:
             code = run_lib.main(argv)
         except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed (e.g. while compiling)
             code = 130
         if os.path.isdir(out):
-            _write_cell_record(out, argv, code, time.perf_counter() - t0)
+            _write_cell_record(out, argv, code, time.perf_counter() - t0, started)
             if artefacts.archive_cell(out, archived, method, artefacts.baseline_for(args.preset)):
                 print(f"{tag}: finished; results archived in {archived}", flush=True)
         report[(task, method)] = {0: "ran" if state != "resume" else "resumed"}.get(code, f"exit {code}")

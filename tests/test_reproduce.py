@@ -277,8 +277,13 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "resuming: python -m experiments.run" in out and "grid: 1 resumed" in out
     assert (runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").exists()
-    calls = json.loads((runs / "paper" / "pendulum" / "ddpg-paramnoise" / "reproduce.json").read_text())["calls"]
+    rec = json.loads((runs / "paper" / "pendulum" / "ddpg-paramnoise" / "reproduce.json").read_text())
+    calls = rec["calls"]
     assert len(calls) == 2 and "--resume" in calls[1]["argv"]
+    # Each call records the commit it ran; the cell's commit is the one it was started at (config.json's).
+    started = json.loads((runs / "paper" / "pendulum" / "ddpg-paramnoise" / "config.json").read_text())["commit"]
+    assert rec["commit"] == calls[0]["commit"] == started and rec["commits"] == sorted({c["commit"] for c in calls})
+    assert rec["wall_seconds"] == pytest.approx(sum(c["wall_seconds"] for c in calls), abs=0.02)
 
     # A fresh clone: no run folders, only the committed archive. Nothing is rerun and the table is the same.
     archived = results / "cells" / "pendulum" / "ddpg-paramnoise"
