@@ -125,7 +125,8 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
 
     ``started`` is ``reporting.provenance()`` taken when the call began (the code that ran, even if
     the checkout changed while it ran); every call (a resume is one) keeps its own commit, and the
-    top-level ``commit`` is the one the cell was started at (its config.json's)."""
+    top-level ``commit`` is the one the cell was started at (its config.json's, also when the first call was
+    killed before it could write this record; ``wall_seconds`` then counts the recorded calls only)."""
     from metapg_jax import reporting
 
     path = os.path.join(out, "reproduce.json")
@@ -137,14 +138,22 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
                                      "commit": started["commit"], "dirty": started["dirty"],
                                      "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}]
     first = {"commit": calls[0].get("commit", started["commit"]), "dirty": calls[0].get("dirty", started["dirty"])}
+    config = os.path.join(out, "config.json")
+    if os.path.exists(config):  # a call killed before it wrote its record (session end, SIGKILL) still started it
+        with open(config) as f:
+            cfg = json.load(f)
+        if cfg.get("commit"):
+            first = {"commit": cfg["commit"], "dirty": cfg.get("dirty", first["dirty"])}
+    commits = {c["commit"] for c in calls if c.get("commit")} | {first["commit"]}
     reporting.write_json_atomic(path, {
-        **started, **first, "commits": sorted({c["commit"] for c in calls if c.get("commit")}),
+        **started, **first, "commits": sorted(c for c in commits if c),
         "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 2), "calls": calls})
 
 
 def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
     """Runs the grid cell by cell; returns (exit status, {cell: what happened})."""
     from experiments import run as run_lib
+    from metapg_jax import reporting
 
     status, report = 0, {}
     cells = [(t, m) for t in tasks for m in methods]
@@ -171,8 +180,6 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         if args.dry_run:
             report[(task, method)] = f"would {state}"
             continue
-        from metapg_jax import reporting
-
         started, t0 = reporting.provenance(), time.perf_counter()
         try:
             code = run_lib.main(argv)

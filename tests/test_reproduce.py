@@ -284,6 +284,16 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     started = json.loads((runs / "paper" / "pendulum" / "ddpg-paramnoise" / "config.json").read_text())["commit"]
     assert rec["commit"] == calls[0]["commit"] == started and rec["commits"] == sorted({c["commit"] for c in calls})
     assert rec["wall_seconds"] == pytest.approx(sum(c["wall_seconds"] for c in calls), abs=0.02)
+    # A first call killed before writing its record: the cell's commit is still config.json's.
+    cell = runs / "paper" / "pendulum" / "ddpg-paramnoise"
+    (cell / "reproduce.json").unlink()
+    cfg = json.loads((cell / "config.json").read_text())
+    (cell / "config.json").write_text(json.dumps({**cfg, "commit": "0" * 40, "dirty": False}))
+    reproduce._write_cell_record(str(cell), ["--resume"], 0, 1.0, {"commit": "f" * 40, "dirty": True})
+    rec = json.loads((cell / "reproduce.json").read_text())
+    assert rec["commit"] == "0" * 40 and rec["dirty"] is False and rec["commits"] == ["0" * 40, "f" * 40]
+    assert rec["calls"][0]["commit"] == "f" * 40 and rec["wall_seconds"] == 1.0
+    (cell / "config.json").write_text(json.dumps(cfg))
 
     # A fresh clone: no run folders, only the committed archive. Nothing is rerun and the table is the same.
     archived = results / "cells" / "pendulum" / "ddpg-paramnoise"
