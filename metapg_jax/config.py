@@ -153,7 +153,10 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
         meta = dataclasses.replace(meta, teacher=teacher)
     total = envs.default_budget(env) if steps is None else steps
     if preset == "paper":
-        run = RunConfig(method=method, total_steps=total, rollout_steps=100, train_steps=spec.train_steps)
+        # The task's train_steps (500 on IP/HalfCheetah) belong to the meta schedule (a 3000-step cycle);
+        # the DDPG baseline keeps baselines' 50 updates per 100-step cycle on every task.
+        train = spec.train_steps if method == "meta" else RunConfig.train_steps
+        run = RunConfig(method=method, total_steps=total, rollout_steps=100, train_steps=train)
         cfg = Config(env=EnvConfig(env, source), run=run, meta=meta, preset=preset)
     else:
         ddpg = DDPGConfig(hidden=(256, 256), layer_norm=False, critic_action_layer=0,

@@ -126,3 +126,18 @@ def test_param_noise_episode_starts_same_numbers_with_named_seed_axis():
     perturbed = a[0].explorer.perturbed
     assert not all(np.array_equal(p, q) for p, q in zip(jax.tree.leaves(perturbed),
                                                           jax.tree.leaves(a[0].student.actor)))
+
+
+@pytest.mark.parametrize("task", ["pendulum", "inverted_pendulum", "inverted_double_pendulum", "hopper",
+                                  "halfcheetah", "reacher"])
+def test_paper_schedules_per_task(task):
+    # Meta: the paper's per-task cycle (IP and HalfCheetah: explore 1000, eval 2000, 500 updates, 100 teacher
+    # steps); the DDPG baseline: baselines' 100 rollout steps and 50 updates per cycle on every task.
+    big = task in ("inverted_pendulum", "halfcheetah")
+    meta = make_config(task, "meta")
+    assert (meta.meta.explore_steps, meta.meta.eval_steps, meta.run.train_steps, meta.meta.teacher_steps) == \
+        ((1000, 2000, 500, 100) if big else (100, 200, 50, 1))
+    for noise in ("adaptive-param", "normal"):
+        ddpg = make_config(task, "ddpg", noise=noise)
+        assert (ddpg.run.rollout_steps, ddpg.run.train_steps) == (100, 50)
+    assert make_config(task, "ddpg", overrides={"run.train_steps": 7}).run.train_steps == 7
