@@ -233,15 +233,16 @@ def load_run(path: str, task: str = "", method: str = "") -> RunResult | None:
     if not rows:
         return None
     steps, values = reporting.curves(rows)
-    summary = _read_json(os.path.join(path, "summary.json"))
+    summary = read_json(os.path.join(path, "summary.json"))
     info = {k: v for k, v in stored.items() if k not in ("config", "run_args")}
     return RunResult(task=task or stored["config"]["env"]["name"], method=method, path=path,
                      complete=bool(summary), config=stored["config"], run_args=stored["run_args"], info=info,
-                     summary=summary, provenance=_read_json(os.path.join(path, "reproduce.json")),
+                     summary=summary, provenance=read_json(os.path.join(path, "reproduce.json")),
                      steps=np.asarray(steps), values=np.asarray(values, np.float64))
 
 
-def _read_json(path: str) -> dict:
+def read_json(path: str) -> dict:
+    """The JSON object stored at ``path``; {} when the file does not exist."""
     if not os.path.exists(path):
         return {}
     with open(path) as f:

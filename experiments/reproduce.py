@@ -130,20 +130,14 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
     from metapg_jax import reporting
 
     path = os.path.join(out, "reproduce.json")
-    old = {}
-    if os.path.exists(path):
-        with open(path) as f:
-            old = json.load(f)
-    calls = old.get("calls", []) + [{"argv": argv, "status": status, "wall_seconds": round(seconds, 2),
-                                     "commit": started["commit"], "dirty": started["dirty"],
-                                     "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}]
-    first = {"commit": calls[0].get("commit", started["commit"]), "dirty": calls[0].get("dirty", started["dirty"])}
-    config = os.path.join(out, "config.json")
-    if os.path.exists(config):  # a call killed before it wrote its record (session end, SIGKILL) still started it
-        with open(config) as f:
-            cfg = json.load(f)
-        if cfg.get("commit"):
-            first = {"commit": cfg["commit"], "dirty": cfg.get("dirty", first["dirty"])}
+    calls = artefacts.read_json(path).get("calls", []) + [{
+        "argv": argv, "status": status, "wall_seconds": round(seconds, 2), "commit": started["commit"],
+        "dirty": started["dirty"], "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}]
+    # A call killed before it wrote its record (session end, SIGKILL) still started the cell: config.json's
+    # commit wins; the first recorded call's is the fallback for a cell without one.
+    cfg = artefacts.read_json(os.path.join(out, "config.json"))
+    first = ({"commit": cfg["commit"], "dirty": cfg.get("dirty", calls[0].get("dirty"))} if cfg.get("commit") else
+             {"commit": calls[0].get("commit", started["commit"]), "dirty": calls[0].get("dirty", started["dirty"])})
     commits = {c["commit"] for c in calls if c.get("commit")} | {first["commit"]}
     reporting.write_json_atomic(path, {
         **started, **first, "commits": sorted(c for c in commits if c),
