@@ -410,6 +410,18 @@ def _joined(values: dict) -> str:
     return "; ".join(f"{METHOD_NAMES.get(m, m)}: {v:,}" for m, v in values.items())
 
 
+def _budget_text(task: str, budgets: dict) -> str:
+    """The budget column: ``_joined`` budgets, flagged when a cell ran fewer steps than the paper's budget
+    (``envs.default_budget``: the paper's, rounded down to whole evaluation intervals), so that a
+    reduced-budget row is never read against the paper's full-budget numbers unmarked."""
+    from envs import default_budget, get_spec  # brax on import: only when a table is written
+
+    text = _joined(budgets)
+    if task in PAPER_TABLE2 and budgets and min(budgets.values()) < default_budget(task):
+        text += f" (reduced; paper: {get_spec(task).paper_budget:,})"
+    return text
+
+
 def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str,
                  build_commit: str | None = None) -> list[str]:
     """table2.md, table2.json and table2_per_seed.csv from ``table2_rows``; returns the paths."""
@@ -422,7 +434,8 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     md = [f"# Table 2: final evaluation return ({preset} preset)", "",
           f"Rows: tasks; columns: methods, mean ± std over the seeds run here, next to the paper's Table 2 "
           f"(Meta / DDPG; {PAPER_SEEDS} seeds, gym v1 tasks, so not directly comparable: our tasks are gymnasium "
-          f"v5 models on MJX). \"not run\": no finished run is stored for that cell (nothing is estimated)."
+          f"v5 models on MJX). \"not run\": no finished run is stored for that cell (nothing is estimated); "
+          f"\"reduced\" in the budget column: fewer env steps per seed than the paper's budget."
           + protocol, "",
           f"- {FINAL_DEFINITION}.", f"- {stats_definition(baseline)}.", "",
           "| task | " + " | ".join(names) + " | paper Meta | paper DDPG | budget (env steps / seed) | seeds run |",
@@ -433,7 +446,7 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
         pm = f"{paper['meta'][0]:,g} ± {paper['meta'][1]:,g}" if paper else "—"  # as printed in the paper
         pd = f"{paper['ddpg'][0]:,g} ± {paper['ddpg'][1]:,g}" if paper else "—"
         done = {m: c for m, c in row["methods"].items() if c["status"] == "done"}
-        budget = _joined({m: c["budget"] for m, c in done.items()})
+        budget = _budget_text(row["task"], {m: c["budget"] for m, c in done.items()})
         seeds = _joined({m: c["n"] for m, c in done.items()})
         md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " + " | ".join(cells) +
                   f" | {pm} | {pd} | {budget} | {seeds} |")

@@ -137,7 +137,12 @@ def test_table2_numbers_match_hand_computation(fabricated):
     md = (fabricated["results"] / "table2.md").read_text()
     idp_line = next(line for line in md.splitlines() if line.startswith("| InvertedDoublePendulum |"))
     assert "not run" in idp_line and "7,718 ± 277" in idp_line and "2,795 ± 1,325" in idp_line
-    assert "| 20,000 |" in idp_line
+    assert "| 20,000 (reduced; paper: 1,500,000) |" in idp_line  # tiny budget: flagged
+    # the paper budget rounded down to whole evaluation intervals is not a reduction; anything less is
+    assert artefacts._budget_text("hopper", {"meta-independent": 990_000}) == "990,000"
+    assert artefacts._budget_text("reacher", {"meta-independent": 696_000, "ddpg-normal": 696_000}) == "696,000"
+    assert artefacts._budget_text("hopper", {"meta-independent": 450_000, "ddpg-paramnoise": 990_000}) == \
+        "Meta (independent): 450,000; DDPG (param noise): 990,000 (reduced; paper: 1,000,000)"
     assert "incomplete (5,000 of 15,000 steps)" in md
     assert "| Hopper | not run | not run | not run | not run | 205 ± 41 | 135 ± 42 | — | — |" in md
     assert "| Reacher | not run | not run | not run | not run | -12.16 ± 1.19 | -11.67 ± 3.39 |" in md
