@@ -146,6 +146,7 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
 
 def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
     """Runs the grid cell by cell; returns (exit status, {cell: what happened})."""
+    from envs import default_budget
     from experiments import run as run_lib
     from metapg_jax import reporting
 
@@ -161,8 +162,9 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         if state == "done":
             with open(os.path.join(out, "summary.json")) as f:
                 s = json.load(f)
-            note = "" if args.steps is None or s.get("env_steps") == args.steps else \
-                f" (stored budget {s.get('env_steps'):,} differs from --steps={args.steps:,}; delete it to rerun)"
+            wanted = default_budget(task) if args.steps is None else args.steps  # the paper's, as make_config
+            note = "" if s.get("env_steps") == wanted else \
+                f" (stored budget {s.get('env_steps'):,} differs from the requested {wanted:,}; delete it to rerun)"
             print(f"{tag}: done, skipped: final eval return {s['final_eval_return_mean']:.1f} ± "
                   f"{s['final_eval_return_std']:.1f} over {s['num_seeds']} seeds, {s['env_steps']:,} steps{note}",
                   flush=True)

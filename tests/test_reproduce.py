@@ -273,8 +273,13 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     (results / "table2.md").unlink()
     assert reproduce.main(argv) == 0
     out = capsys.readouterr().out
-    assert out.count("done, skipped") == 2 and "grid: 2 skipped" in out
+    assert out.count("done, skipped") == 2 and "grid: 2 skipped" in out and "differs" not in out
     assert (results / "table2.md").exists()
+    # Without --steps the paper's budget is asked for: the stored 600-step cells are kept, and said to differ.
+    no_steps = [a for a in argv if a not in ("--steps", "600")]
+    assert reproduce.main(no_steps + ["--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("stored budget 600 differs from the requested 900,000; delete it to rerun") == 2
 
     # A cell with a checkpoint but no summary is resumed (with the same explicit options).
     (runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").unlink()
