@@ -240,8 +240,8 @@ def env_speed_markdown(results: list[dict], meta: dict) -> str:
         "with our early-exit line search (the default) and with MJX's stock one, in the same process; "
         "'identical' says whether the two trajectories (observations, rewards) are bitwise equal. Next to "
         "them gymnasium's own env (MuJoCo C, or NumPy for Pendulum) stepped one at a time in a Python loop.", "",
-        "| task | ours, 8 envs, steps/s | stock MJX line search, steps/s | speedup | identical | "
-        "gymnasium, 1 env, steps/s | compile s |",
+        f"| task | ours, {results[0]['num_envs']} envs, steps/s | stock MJX line search, steps/s | speedup | "
+        "identical | gymnasium, 1 env, steps/s | compile s |",
         "|---|---|---|---|---|---|---|",
     ]
     for r in results:
@@ -326,7 +326,8 @@ def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--envs", default="pendulum,inverted_double_pendulum")
+    p.add_argument("--envs", default=None,
+                   help="comma-separated tasks (default: pendulum,inverted_double_pendulum; all tasks with --env-speed)")
     p.add_argument("--methods", default="ddpg,meta")
     p.add_argument("--presets", default="paper,modern")
     p.add_argument("--seeds", default="1,8,32")
@@ -338,7 +339,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--json", default=None,
                    help="raw numbers (default benchmarks.json; benchmarks_env_speed.json with --env-speed)")
     p.add_argument("--env-speed", action="store_true",
-                   help="only environment stepping: ours (8 vmapped envs) vs gymnasium's own, all tasks")
+                   help="only environment stepping: ours (--num-envs vmapped envs) vs gymnasium's own")
+    p.add_argument("--num-envs", type=int, default=8,
+                   help="envs stepped at once by --env-speed (default 8; on a GPU try hundreds: per-step latency "
+                        "dominates there)")
     p.add_argument("--stock-mjx", action="store_true",
                    help="MuJoCo tasks with MJX's stock line search (early_exit_linesearch=False): the 'before' "
                         "rows of the line-search change, kept next to the default rows")
@@ -351,6 +355,17 @@ def main(argv: list[str] | None = None) -> int:
     if args.one:
         print("BENCH_RESULT " + json.dumps(measure_one(json.loads(args.one))), flush=True)
         return 0
+    import envs
+
+    tasks = args.envs.split(",") if args.envs else (list(envs.TASKS) if args.env_speed else
+                                                   ["pendulum", "inverted_double_pendulum"])
+    unknown = [t for t in tasks if t not in envs.TASKS]
+    if unknown:
+        print(f"error: unknown task(s) {', '.join(unknown)}; known: {', '.join(envs.TASKS)}", file=sys.stderr)
+        return 2
+    if args.num_envs <= 0 or args.repeats <= 0:
+        print("error: --num-envs and --repeats must be positive", file=sys.stderr)
+        return 2
     import jax
 
     from metapg_jax import reporting
@@ -360,18 +375,16 @@ def main(argv: list[str] | None = None) -> int:
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
             "repeats": args.repeats, "json": json_path}
     if args.env_speed:
-        import envs
-
         results = []
-        for task in envs.TASKS:
-            results.append(measure_env_speed(task, repeats=args.repeats))
+        for task in tasks:
+            results.append(measure_env_speed(task, num_envs=args.num_envs, repeats=args.repeats))
             print(env_speed_markdown(results, meta).splitlines()[-1], flush=True)
             reporting.write_json_atomic(json_path, {"meta": meta, "env_speed": results})
             write_section(args.out, "env-speed", env_speed_markdown(results, meta))
         return 0
     if args.quick:
-        args.envs, args.seeds = "pendulum", "1,8"
-    envs_ = args.envs.split(",")
+        tasks, args.seeds = ["pendulum"], "1,8"
+    envs_ = tasks
     specs = [{"env": e, "method": m, "preset": pr, "seeds": int(s), "repeats": args.repeats,
               "target_steps": args.target_steps or (3000 if e == "pendulum" else 600),
               "stock_mjx": args.stock_mjx and e != "pendulum", "plain_vmap": args.plain_vmap}

@@ -37,3 +37,15 @@ def test_env_speed_markdown_flags_a_physics_difference():
     md = bench.env_speed_markdown(res, meta)
     assert "| hopper | 1,700 | 850 | 2.00x | NO | 8,300 | 30.0 |" in md
     assert "| pendulum | 1,000,000 | – | – | – | 50,000 | 0.5 |" in md
+    assert "| task | ours, 8 envs, steps/s |" in md
+    md512 = bench.env_speed_markdown([dict(r, num_envs=512) for r in res], meta)
+    assert "| task | ours, 512 envs, steps/s |" in md512 and "512 envs vmapped" in md512
+
+
+def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
+    out = str(tmp_path / "B.md")
+    assert bench.main(["--env-speed", "--envs", "pendulum,cartpole", "--out", out]) == 2
+    assert "unknown task(s) cartpole" in capsys.readouterr().err
+    assert bench.main(["--env-speed", "--envs", "pendulum", "--num-envs", "0", "--out", out]) == 2
+    assert "--num-envs and --repeats must be positive" in capsys.readouterr().err
+    assert not (tmp_path / "B.md").exists()
