@@ -17,7 +17,7 @@ import pytest
 from scipy import stats
 
 from experiments import artefacts, reproduce
-from metapg_jax import config as config_lib
+from tests.helpers import fabricate_run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TINY = ["--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
@@ -58,35 +58,6 @@ def test_first_step_reaching():
 
 
 # ---------------------------------------------------------------------------------------------- fabricated runs
-
-def fabricate_run(path, task, method, values, steps, complete=True, visit_obs=None):
-    """A run folder like experiments.run writes: config.json, metrics.jsonl, (summary.json), (visits.npz)."""
-    os.makedirs(path)
-    kind = "meta" if method.startswith("meta") else "ddpg"
-    cfg = config_lib.make_config(task, kind, steps=int(steps[-1]) if complete else 3 * int(steps[-1]))
-    run_args = {"env": task, "method": kind, "teacher": None, "preset": "paper", "noise": None,
-                "seeds": len(values), "seed": 0, "steps": None, "source": "gymnasium", "overrides": []}
-    with open(os.path.join(path, "config.json"), "w") as f:
-        json.dump({"config": config_lib.to_dict(cfg), "run_args": run_args, "jax_version": "x", "backend": "cpu",
-                   "devices": ["cpu:0"]}, f)
-    with open(os.path.join(path, "metrics.jsonl"), "w") as f:
-        for c, step in enumerate(steps):
-            for s in range(len(values)):
-                f.write(json.dumps({"seed": s, "chunk": c, "env_steps": int(step), "eval_return": float(values[s][c])})
-                        + "\n")
-    if complete:
-        with open(os.path.join(path, "summary.json"), "w") as f:
-            json.dump({"env_steps": int(steps[-1]), "num_seeds": len(values), "train_seconds": 1.5,
-                       "compile_seconds": 0.5}, f)
-    if visit_obs is not None:
-        rng = np.random.default_rng(len(str(path)))
-        n, k = len(values), 40
-        arrays = {f"{who}_{when}": rng.normal(size=(n, k, visit_obs)).astype(np.float32)
-                  for who in ("explore", "student") for when in ("early", "late")}
-        arrays["explore_count"] = np.full(n, 1000, np.int32)
-        arrays["student_count"] = np.full(n, 1000 if kind == "meta" else 0, np.int32)
-        np.savez(os.path.join(path, "visits.npz"), **arrays)
-
 
 @pytest.fixture(scope="module")
 def fabricated(tmp_path_factory):
