@@ -384,11 +384,10 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.quick:
         tasks, args.seeds = ["pendulum"], "1,8"
-    envs_ = tasks
     specs = [{"env": e, "method": m, "preset": pr, "seeds": int(s), "repeats": args.repeats,
               "target_steps": args.target_steps or (3000 if e == "pendulum" else 600),
               "stock_mjx": args.stock_mjx and e != "pendulum", "plain_vmap": args.plain_vmap}
-             for e in envs_ for m in args.methods.split(",") for pr in args.presets.split(",")
+             for e in tasks for m in args.methods.split(",") for pr in args.presets.split(",")
              for s in args.seeds.split(",")]
     for s in specs:
         if s["seeds"] <= 0 or s["repeats"] <= 0:
