@@ -11,13 +11,13 @@ compared with the control on the same definitions as ``results/table2.md``:
 
 * final return of a seed = mean of its last 10% (at least 1) evaluations up to ``--upto``;
 * mean ± std over seeds (ddof=1), 95% Student-t CI, two-sided Welch t-test vs the control;
-* for Meta runs with a ``cycles.jsonl``: the teacher's log-std, seed-mean over the last 10% of the
-  cycles up to ``--upto``, and how many seeds sit at its floor (``meta.min_log_std``).
+* for Meta runs: the teacher's log-std over the same last 10% of evaluations (seed-mean), and how
+  many seeds sit at its floor (``meta.min_log_std``).
 
 What differs between a run's config and the control's is listed from the stored configs (not from
 the names given on the command line). Writes ``<out>/README.md`` (table), ``per_seed.csv`` and
-``curves.png``; with ``--archive`` it first copies each run's result files (the ``results/cells``
-set plus ``cycles.jsonl``) to ``<out>/cells/<name>/`` and reads them from there, so the report can
+``curves.png``; with ``--archive`` it first copies each run's result files (the set that
+``results/cells`` keeps) to ``<out>/cells/<name>/`` and reads them from there, so the report can
 be rebuilt from a fresh clone: ``python -m experiments.ablation --out DIR --rebuild``.
 """
 
@@ -37,7 +37,6 @@ import numpy as np
 
 from experiments import artefacts
 
-CYCLES = "cycles.jsonl"
 MANIFEST = "ablation.json"
 
 
@@ -73,27 +72,21 @@ def cut(r: artefacts.RunResult, upto: int) -> tuple[np.ndarray, np.ndarray]:
     return r.steps[keep], r.values[:, keep]
 
 
-def teacher_log_std(path: str, config: dict, upto: int, fraction: float = 0.1) -> dict | None:
-    """Seed-mean teacher log-std over the last 10% of the cycles that end at env steps <= upto, and the
-    number of seeds whose mean over that window is within 0.01 of the floor; None without cycles.jsonl."""
+def teacher_log_std(path: str, config: dict, upto: int) -> dict | None:
+    """Per-seed teacher log-std over the same window as the final return (the last 10% of the
+    evaluations up to ``upto``; each evaluation row holds the mean over its chunk's cycles), its
+    seed-mean, and how many seeds are within 0.01 of the floor ``meta.min_log_std``; None for runs
+    without a teacher."""
     from metapg_jax import reporting
 
-    p = os.path.join(path, CYCLES)
-    if config.get("run", {}).get("method") != "meta" or not os.path.exists(p):
+    if config.get("run", {}).get("method") != "meta":
         return None
-    m = config["meta"]
-    per_cycle = m["explore_steps"] + m["eval_steps"] * m["eval_envs"]
-    rows = [r for r in reporting.read_jsonl(p)
-            if r.get("teacher_log_std") is not None and (r["cycle"] + 1) * per_cycle <= upto]
-    if not rows:
+    rows = reporting.read_jsonl(os.path.join(path, "metrics.jsonl"))
+    if not rows or "teacher_log_std" not in rows[0]:
         return None
-    seeds = sorted({r["seed"] for r in rows})
-    per_seed = []
-    for s in seeds:
-        xs = [r["teacher_log_std"] for r in sorted((r for r in rows if r["seed"] == s), key=lambda r: r["cycle"])]
-        k = artefacts.num_final_evaluations(len(xs), fraction)
-        per_seed.append(float(np.mean(xs[-k:])))
-    floor = float(m["min_log_std"])
+    steps, values = reporting.curves(rows, "teacher_log_std")
+    per_seed = [float(x) for x in artefacts.final_returns(np.asarray(values)[:, steps <= upto])]
+    floor = float(config["meta"]["min_log_std"])
     return {"mean": float(np.mean(per_seed)), "per_seed": per_seed, "floor": floor,
             "seeds_at_floor": int(sum(x <= floor + 0.01 for x in per_seed))}
 
@@ -143,8 +136,9 @@ def markdown(rows: list[dict], task: str, upto: int, build: dict) -> str:
              f"Final return = mean of the last {control['final_evaluations']} of the "
              f"{control['evaluations']} evaluations up to {upto:,} steps (10%, at least 1), per seed; "
              "mean ± std over seeds (ddof=1); 95% CI: Student t; p: two-sided Welch t-test of the seeds' "
-             "final returns vs the control. Teacher log-std: seed-mean over the last 10% of the cycles up "
-             "to that step (Meta runs only); 'at floor': seeds within 0.01 of `meta.min_log_std`. "
+             "final returns vs the control. Teacher log-std: per seed over the same evaluations (each the mean "
+             "over its chunk's cycles), then the seed-mean (Meta runs only); 'at floor': seeds within 0.01 "
+             "of `meta.min_log_std`. "
              "Per-seed numbers: `per_seed.csv`; curves: `curves.png`.", "",
              "| run | changed vs control (from the stored configs) | final (mean ± std) | 95% CI | p vs control "
              "| teacher log-std | seeds at floor |", "|---|---|---|---|---|---|---|"]
@@ -195,13 +189,13 @@ def write_report(rows: list[dict], task: str, upto: int, out: str) -> list[str]:
 
 
 def archive(path: str, dest: str) -> str:
-    """Copies a run's result files (as ``results/cells`` keeps them, plus cycles.jsonl) to ``dest``."""
+    """Copies a run's result files (those ``results/cells`` keeps, without the visitation sample) to ``dest``."""
     if not os.path.exists(os.path.join(path, "metrics.jsonl")):
         raise ValueError(f"{path}: no metrics.jsonl (not a run folder)")
     if os.path.abspath(path) == os.path.abspath(dest):
         return dest
     os.makedirs(dest, exist_ok=True)
-    for name in (*artefacts.ARCHIVE_FILES, CYCLES):
+    for name in artefacts.ARCHIVE_FILES:
         src = os.path.join(path, name)
         if os.path.exists(src):
             shutil.copyfile(src, os.path.join(dest, name + ".tmp"))

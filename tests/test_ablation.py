@@ -1,5 +1,6 @@
 """experiments.ablation on fabricated run folders: cut at --upto, numbers against hand computation,
-config differences read from the stored configs, teacher log-std floor, bad input, archive + rebuild."""
+config differences read from the stored configs, teacher log-std at its floor, bad input, archive +
+rebuild."""
 
 import csv
 import json
@@ -25,12 +26,13 @@ def _set_config(path, **changes):
     json.dump(stored, open(p, "w"))
 
 
-def _write_cycles(path, log_stds):
-    """cycles.jsonl with one teacher_log_std per (seed, cycle)."""
-    with open(os.path.join(path, "cycles.jsonl"), "w") as f:
-        for s, row in enumerate(log_stds):
-            for c, v in enumerate(row):
-                f.write(json.dumps({"seed": s, "cycle": c, "teacher_log_std": v, "meta_reward": 0.0}) + "\n")
+def _add_teacher_log_std(path, log_stds):
+    """Adds a teacher_log_std (per seed, per evaluation) to a fabricated run's metrics.jsonl."""
+    p = os.path.join(path, "metrics.jsonl")
+    rows = [json.loads(line) for line in open(p)]
+    with open(p, "w") as f:
+        for r in rows:
+            f.write(json.dumps({**r, "teacher_log_std": log_stds[r["seed"]][r["chunk"]]}) + "\n")
 
 
 @pytest.fixture()
@@ -42,9 +44,9 @@ def runs(tmp_path):
     fabricate_run(tmp_path / "variant", "pendulum", "meta-independent", variant[:, :12], STEPS[:12])
     eval_every = json.load(open(tmp_path / "control" / "config.json"))["config"]["run"]["eval_every"]
     _set_config(tmp_path / "variant", **{"meta.normalize_meta_reward": True, "run.eval_every": eval_every})
-    # pendulum paper cycle: 100 explore + 200 eval = 300 steps; 40 cycles = 12,000 steps, 66 = 19,800
-    _write_cycles(tmp_path / "control", [[-5.0] * 66, [-1.0] * 66, [-4.995] * 66])
-    _write_cycles(tmp_path / "variant", [[-0.5] * 30 + [-2.0] * 10] * 3)
+    # per evaluation; only those up to --upto (12,000 steps: the first 12) may count
+    _add_teacher_log_std(tmp_path / "control", [[-5.0] * 20, [-1.0] * 20, [-4.995] * 11 + [-5.0] + [0.0] * 8])
+    _add_teacher_log_std(tmp_path / "variant", [[-0.5] * 11 + [-2.0]] * 3)
     return tmp_path, control, variant
 
 
@@ -60,9 +62,9 @@ def test_numbers_at_the_common_budget_match_hand_computation(runs):
     assert rows[1]["mean"] == pytest.approx(fin_v.mean()) and rows[1]["std"] == pytest.approx(fin_v.std(ddof=1))
     assert rows[1]["p_vs_control"] == pytest.approx(stats.ttest_ind(fin_v, fin_c, equal_var=False).pvalue)
     assert rows[1]["diff"] == {"meta.normalize_meta_reward": (True, False)}  # total_steps ignored
-    # teacher: cycles ending at <= 12,000 steps are 0..39; last 10% = 4 cycles
+    # teacher: the same window as the final return (the 12th evaluation), not the control's later ones
     assert rows[1]["teacher"]["per_seed"] == [-2.0] * 3 and rows[1]["teacher"]["seeds_at_floor"] == 0
-    assert rows[0]["teacher"]["per_seed"] == pytest.approx([-5.0, -1.0, -4.995])
+    assert rows[0]["teacher"]["per_seed"] == pytest.approx([-5.0, -1.0, -5.0])
     assert rows[0]["teacher"]["seeds_at_floor"] == 2
 
 
@@ -77,7 +79,7 @@ def test_report_files_archive_and_rebuild(runs, capsys):
     assert "| 2 of 3 |" in md and "| 0 of 3 |" in md
     assert os.path.exists(out / "curves.png")
     assert sorted(os.listdir(out / "cells" / "normalised-reward")) == [
-        "config.json", "cycles.jsonl", "metrics.jsonl", "summary.json"]
+        "config.json", "metrics.jsonl", "summary.json"]
     with open(out / "per_seed.csv") as f:
         got = list(csv.DictReader(f))
     assert len(got) == 6 and float(got[3]["final_return"]) == pytest.approx(variant[0, 11], abs=1e-3)
