@@ -1,3 +1,4 @@
+# As run on the device: the Python file was carried there as .whl/gpu_env.py; it is kept here as env_speed.py.
 export PYTHONUNBUFFERED=1 MUJOCO_GL=disable
 python3 -m pip install -q --no-index --no-deps --no-compile --no-cache-dir --upgrade --target /tmp/site .whl/*.whl || exit 1
 export PYTHONPATH=/tmp/site:$PWD

@@ -1,4 +1,5 @@
 #!/bin/bash
+# As run on the device, where it was carried as .whl/gpu_check.sh.
 # GPU check for metapg-jax (#5 compute question + README "Backend" claim).
 # Device image: python 3.12, jax 0.11.2 + CUDA 13 plugin. Carried wheels: brax 0.14.2, mujoco 4.0.0,
 # mujoco-mjx 3.17.0, gymnasium 1.4.0, flax 0.12.12, optax 0.2.8, chex 0.1.92, orbax 0.12.8 (+ small deps).

@@ -29,7 +29,6 @@ import json
 import math
 import os
 import re
-import shutil
 import sys
 from typing import Sequence
 
@@ -194,12 +193,7 @@ def archive(path: str, dest: str) -> str:
         raise ValueError(f"{path}: no metrics.jsonl (not a run folder)")
     if os.path.abspath(path) == os.path.abspath(dest):
         return dest
-    os.makedirs(dest, exist_ok=True)
-    for name in artefacts.ARCHIVE_FILES:
-        src = os.path.join(path, name)
-        if os.path.exists(src):
-            shutil.copyfile(src, os.path.join(dest, name + ".tmp"))
-            os.replace(os.path.join(dest, name + ".tmp"), os.path.join(dest, name))
+    artefacts.copy_result_files(path, dest)
     return dest
 
 

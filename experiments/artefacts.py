@@ -281,14 +281,10 @@ def archive_dir_for(results_dir: str, preset: str) -> str:
     return os.path.join(results_dir_for(results_dir, preset), "cells")
 
 
-def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = BASELINE) -> bool:
-    """Copies a finished run folder's results into the archive (atomically, file by file); False if the
-    run is not finished. Re-archiving a cell replaces its files. The visitation sample is kept for the
-    methods of the visitation figure only (Meta independent and ``baseline``)."""
+def copy_result_files(run_path: str, archive_path: str) -> None:
+    """Copies the ``ARCHIVE_FILES`` a run folder has into ``archive_path``, each atomically."""
     import shutil
 
-    if not os.path.exists(os.path.join(run_path, "summary.json")):
-        return False
     os.makedirs(archive_path, exist_ok=True)
     for name in ARCHIVE_FILES:
         src = os.path.join(run_path, name)
@@ -296,6 +292,15 @@ def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = 
             tmp = os.path.join(archive_path, name + ".tmp")
             shutil.copyfile(src, tmp)
             os.replace(tmp, os.path.join(archive_path, name))
+
+
+def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = BASELINE) -> bool:
+    """Copies a finished run folder's results into the archive (atomically, file by file); False if the
+    run is not finished. Re-archiving a cell replaces its files. The visitation sample is kept for the
+    methods of the visitation figure only (Meta independent and ``baseline``)."""
+    if not os.path.exists(os.path.join(run_path, "summary.json")):
+        return False
+    copy_result_files(run_path, archive_path)
     visits = os.path.join(run_path, "visits.npz")
     if method in (META, baseline) and os.path.exists(visits):
         with np.load(visits) as v:
