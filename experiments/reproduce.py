@@ -15,7 +15,12 @@ are rebuilt and as soon as a cell finishes. A cell whose ``summary.json``
 exists is skipped (so is one with no run folder whose results are archived);
 one with a checkpoint but no summary is resumed (with the
 same explicit options, so ``--resume`` checks they match); one with neither
-(killed before its first checkpoint) is started again. Next to each cell's
+(killed before its first checkpoint) is started again. A finished cell whose
+budget is below the requested one (e.g. a reduced-budget cell, when the grid is
+run again at the paper's budget) is *extended* from its final checkpoint
+(``experiments.run --resume <cell> --steps=<budget>``: the same numbers as a run
+started at that budget); until the extension finishes, the archive keeps the
+shorter cell. Next to each cell's
 run outputs, ``reproduce.json`` records the commit, the machine, the command
 and the accumulated wall time of this script's calls for that cell.
 
@@ -101,19 +106,27 @@ def cell_state(path: str) -> str:
     return "new"
 
 
+def wanted_budget(args: argparse.Namespace, task: str) -> int:
+    """The requested env steps per seed: ``--steps``, else the paper's budget for the task (as make_config)."""
+    from envs import default_budget
+
+    return default_budget(task) if args.steps is None else args.steps
+
+
 def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state: str) -> list[str]:
-    """The explicit ``experiments.run`` options of a cell (the same for a fresh start and a resume)."""
+    """The explicit ``experiments.run`` options of a cell (the same for a fresh start and a resume; an
+    extension names the new budget)."""
     argv = [f"--env={task}", *artefacts.METHODS[method], f"--preset={args.preset}", f"--seeds={args.seeds}",
             f"--seed={args.seed}", f"--source={args.source}"]
-    if args.steps is not None:
-        argv.append(f"--steps={args.steps}")
+    if args.steps is not None or state == "extend":
+        argv.append(f"--steps={wanted_budget(args, task)}")
     for item in args.overrides:
         argv += ["--set", item]
     if args.no_plot:
         argv.append("--no-plot")
     if args.quiet:
         argv.append("--quiet")
-    if state == "resume":
+    if state in ("resume", "extend"):
         argv += ["--resume", out]
     else:
         argv += ["--out", out] + (["--overwrite"] if state == "restart" else [])
@@ -146,7 +159,6 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
 
 def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
     """Runs the grid cell by cell; returns (exit status, {cell: what happened})."""
-    from envs import default_budget
     from experiments import run as run_lib
     from metapg_jax import reporting
 
@@ -159,19 +171,28 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         archived = os.path.join(artefacts.archive_dir_for(args.results_dir, args.preset), task, method)
         if state == "new" and os.path.exists(os.path.join(archived, "summary.json")):
             out, state = archived, "done"  # finished in an earlier clone; its run folder is not committed
+        wanted = wanted_budget(args, task)
         if state == "done":
             with open(os.path.join(out, "summary.json")) as f:
                 s = json.load(f)
-            wanted = default_budget(task) if args.steps is None else args.steps  # the paper's, as make_config
-            note = "" if s.get("env_steps") == wanted else \
-                f" (stored budget {s.get('env_steps'):,} differs from the requested {wanted:,}; delete it to rerun)"
+            if s["env_steps"] < wanted and out != archived and os.path.isdir(os.path.join(out, "checkpoints")):
+                state = "extend"  # a finished shorter run: continue it to the requested budget
+        if state == "done":
+            if s.get("env_steps") == wanted:
+                note = ""
+            elif s["env_steps"] < wanted:
+                note = (f" (stored budget {s.get('env_steps'):,} is below the requested {wanted:,}, and its run "
+                        f"folder with the checkpoints to extend is not here; delete it to rerun)")
+            else:
+                note = f" (stored budget {s.get('env_steps'):,} is above the requested {wanted:,}; delete it to rerun)"
             print(f"{tag}: done, skipped: final eval return {s['final_eval_return_mean']:.1f} ± "
                   f"{s['final_eval_return_std']:.1f} over {s['num_seeds']} seeds, {s['env_steps']:,} steps{note}",
                   flush=True)
             report[(task, method)] = "skipped"
             continue
         argv = cell_argv(args, task, method, out, state)
-        verb = {"resume": "resuming", "restart": "restarting (no checkpoint stored)", "new": "running"}[state]
+        verb = f"extending from {s['env_steps']:,} to {wanted:,} steps" if state == "extend" else \
+            {"resume": "resuming", "restart": "restarting (no checkpoint stored)", "new": "running"}[state]
         print(f"{tag}: {verb}: python -m experiments.run {' '.join(argv)}", flush=True)
         if args.dry_run:
             report[(task, method)] = f"would {state}"
@@ -185,7 +206,8 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
             _write_cell_record(out, argv, code, time.perf_counter() - t0, started)
             if artefacts.archive_cell(out, archived, method, artefacts.baseline_for(args.preset)):
                 print(f"{tag}: finished; results archived in {archived}", flush=True)
-        report[(task, method)] = {0: "ran" if state != "resume" else "resumed"}.get(code, f"exit {code}")
+        report[(task, method)] = {0: {"resume": "resumed", "extend": "extended"}.get(state, "ran")}.get(
+            code, f"exit {code}")
         if code == 130:
             print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
             return 130, report

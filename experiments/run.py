@@ -4,6 +4,7 @@
     python -m experiments.run --env=pendulum --method=ddpg --noise=ou --steps=90000
     python -m experiments.run --env=hopper --preset=modern --set ddpg.actor_lr=1e-3
     python -m experiments.run --resume runs/hopper-meta-modern-s0
+    python -m experiments.run --resume runs/hopper-meta-modern-s0 --steps=990000   # extend the budget
 
 Writes under ``--out`` (default ``runs/<env>-<method>-<preset>-s<seed>``):
 ``config.json``, ``metrics.jsonl`` (one line per seed per evaluation, appended
@@ -13,6 +14,14 @@ std band and per-seed lines), ``teacher.png`` (meta), ``visits.npz`` (sampled
 states of the exploring policy and the student, early and late, per seed),
 ``policy.npz`` (the deterministic actors, see ``metapg_jax.load_policy``),
 ``summary.json``; and prints the final evaluation return per seed and mean ± std.
+
+``--resume RUN_DIR --steps=N`` with N above the stored budget *extends* the run (finished or
+not) to N env steps per seed: it continues from the latest checkpoint and ends where a run started
+with ``--steps=N`` would, with the same numbers (nothing in training depends on the budget except
+the replay capacity, min(1e6, budget), and a buffer that has never overwritten a transition grows
+to the larger capacity unchanged; tested). Every other setting must stay the same. config.json
+then holds the new budget and an ``extensions`` list; the shorter run's summary is kept as
+``summary_<steps>.json``.
 
 Exit status: 0 done; 2 bad input (one ``error:`` line, before anything
 compiles); 3 non-finite parameters (the run stops, the last good checkpoint
@@ -67,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("--resume", default=None, metavar="RUN_DIR",
                    help="continue the run in RUN_DIR from its latest checkpoint; options given with it must "
-                        "match the stored run")
+                        "match the stored run, except a larger --steps, which extends its budget")
     p.add_argument("--checkpoint-every", type=int, default=0, metavar="CHUNKS",
                    help="checkpoint every CHUNKS evaluation chunks; 0 (default) = whenever "
                         "--checkpoint-minutes have passed, and at the end")
@@ -129,8 +138,10 @@ def check_devices(num_seeds: int) -> None:
                          f"use a multiple of {n} (or limit the devices, e.g. CUDA_VISIBLE_DEVICES)")
 
 
-def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, bool]:
-    """Everything that can fail on user input, before anything compiles: (config, run args, out, resume)."""
+def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, bool, int | None]:
+    """Everything that can fail on user input, before anything compiles: (config, run args, out, resume,
+    the stored budget when the resume extends it, else None)."""
+    extend_from = None
     if args.checkpoint_every < 0 or not args.checkpoint_minutes > 0:
         raise ValueError("--checkpoint-every must be >= 0 and --checkpoint-minutes > 0")
     if args.resume:
@@ -144,11 +155,22 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
             raise ValueError("--out and --resume name different folders; a resumed run writes into its own folder")
         a = run_args(args, stored["run_args"])
         cfg = config_from_run_args(a)
-        differences = config_lib.diff(stored["config"], config_lib.to_dict(cfg))
+        old_steps, new_steps = stored["config"]["run"]["total_steps"], cfg.run.total_steps
+        if new_steps != old_steps:
+            if new_steps < old_steps:
+                raise ValueError(f"--resume {out}: --steps={new_steps} is below the stored budget of {old_steps:,} "
+                                 f"env steps; a run can be extended, not shortened")
+            extend_from = old_steps
+        # An extension changes the budget only (see the module docstring).
+        same_budget = {**stored["config"], "run": {**stored["config"]["run"], "total_steps": new_steps}}
+        differences = config_lib.diff(same_budget, config_lib.to_dict(cfg))
         differences += [f"{k} ({stored['run_args'][k]!r} -> {a[k]!r})" for k in ("seeds", "seed")
                         if stored["run_args"][k] != a[k]]
         if differences:
-            raise ValueError(f"--resume {out}: the options given change the stored run: {'; '.join(differences)}")
+            what = f"extending it to {new_steps:,} steps would also change" if extend_from else \
+                "the options given change the stored run"
+            hint = " (pass the stored value with --set)" if extend_from else ""
+            raise ValueError(f"--resume {out}: {what}: {'; '.join(differences)}{hint}")
         if not os.path.isdir(os.path.join(out, "checkpoints")):
             raise ValueError(f"--resume {out}: no checkpoints/ folder; nothing to resume from")
     else:
@@ -159,14 +181,14 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
             raise ValueError(f"output folder {out} exists; pass --resume {out} to continue it, "
                              f"--overwrite to replace it, or --out elsewhere")
     check_devices(a["seeds"])
-    return cfg, a, out, bool(args.resume)
+    return cfg, a, out, bool(args.resume), extend_from
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     _maybe_initialize_distributed()
     try:
-        cfg, a, out, resume = prepare(args)
+        cfg, a, out, resume, extend_from = prepare(args)
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -175,7 +197,8 @@ def main(argv: list[str] | None = None) -> int:
 
         jax.config.update("jax_debug_nans", True)
     return run(cfg, a, out, resume=resume, overwrite=args.overwrite, plot=not args.no_plot, quiet=args.quiet,
-               checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes)
+               checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes,
+               extend_from=extend_from)
 
 
 def _maybe_initialize_distributed() -> None:
@@ -230,7 +253,8 @@ def _truncate_jsonl(path: str, keep) -> None:
 
 
 def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
-        plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0) -> int:
+        plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0,
+        extend_from: int | None = None) -> int:
     import jax
     import numpy as np
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
@@ -250,6 +274,8 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
                 "config": config_lib.to_dict(cfg), "run_args": a,
                 "jax_version": jax.__version__, "backend": jax.default_backend(),
                 "devices": [str(d) for d in jax.devices()], **reporting.provenance()})
+    elif extend_from is not None and main_process:
+        _record_extension(out, cfg, a, extend_from)
 
     trainer = make_train(cfg)
     keys = seed_keys(seed, num_seeds)
@@ -266,7 +292,24 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
     checkpointer = Checkpointer(os.path.join(out, "checkpoints"))
     start = 0
     if resume:
-        state, meta = checkpointer.restore(jax.eval_shape(init_fn, keys))
+        abstract = jax.eval_shape(init_fn, keys)
+
+        def stored_shapes(meta):  # a checkpoint written before an extension has the smaller replay capacity
+            capacity = config_lib.from_dict(meta["config"]).buffer_capacity
+            if capacity == cfg.buffer_capacity:
+                return abstract
+            buffer = jax.eval_shape(jax.vmap(lambda _: replay.init(
+                capacity, trainer.ddpg.obs_size, trainer.ddpg.action_size)), keys)
+            return abstract.replace(buffer=buffer)
+
+        state, meta = checkpointer.restore(stored_shapes)
+        if state.buffer.capacity != cfg.buffer_capacity:
+            # Only min(1e6, budget) capacities grow, from a smaller budget below 1e6 that the buffer held
+            # whole: no transition was overwritten (checked), so growing equals the longer run's buffer.
+            if int(np.max(state.env_steps)) > state.buffer.capacity:
+                raise RuntimeError(f"checkpoint in {out} holds a replay buffer that has overwritten transitions; "
+                                   f"it cannot grow to {cfg.buffer_capacity:,}")
+            state = state.replace(buffer=replay.grow(state.buffer, cfg.buffer_capacity))
         state = jax.device_put(state, seeds_sharding)
         start = int(meta["chunks_done"])
         first_cycle = start * cfg.cycles_per_chunk
@@ -342,8 +385,26 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
         "compile_seconds": round(compile_s, 2), "train_seconds": round(train_s, 2),
         "env_steps_per_second_total": round(num_seeds * chunks_run * cfg.run.eval_every / max(train_s, 1e-9), 1),
         "replay_mib": round(buffer_mb, 1), "peak_rss_mib": round(_peak_rss_mib(), 1),
-        "devices": jax.device_count(), "backend": jax.default_backend(), "resumed_from_chunk": start})
+        "devices": jax.device_count(), "backend": jax.default_backend(), "resumed_from_chunk": start,
+        **({"extended_from_steps": extend_from} if extend_from else {})})
     return 0
+
+
+def _record_extension(out: str, cfg: config_lib.Config, a: dict, old_steps: int) -> None:
+    """Before an extension runs: config.json gets the new budget (so a plain ``--resume`` continues the
+    extension) and an ``extensions`` entry; the shorter run's summary is kept as ``summary_<steps>.json``."""
+    from metapg_jax import reporting
+
+    path = os.path.join(out, "config.json")
+    with open(path) as f:
+        stored = json.load(f)
+    summary = os.path.join(out, "summary.json")
+    if os.path.exists(summary):
+        os.replace(summary, os.path.join(out, f"summary_{old_steps}.json"))
+    entry = {"from_steps": old_steps, "to_steps": cfg.run.total_steps,
+             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **reporting.provenance()}
+    reporting.write_json_atomic(path, {**stored, "config": config_lib.to_dict(cfg), "run_args": a,
+                                       "extensions": stored.get("extensions", []) + [entry]})
 
 
 def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool = True, extra: dict | None = None):

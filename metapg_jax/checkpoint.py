@@ -54,17 +54,25 @@ class Checkpointer:
         """The newest readable checkpoint (or ``step``): (state, metadata).
 
         ``abstract_state`` gives the shapes, dtypes and pytree structure
-        (``jax.eval_shape`` of the init). Unreadable checkpoints are skipped
-        with a warning; if none can be read, raises ``FileNotFoundError``.
+        (``jax.eval_shape`` of the init), or is a function of the checkpoint's
+        metadata returning them (a run extended to a larger budget restores
+        checkpoints written with the smaller replay capacity). Unreadable
+        checkpoints are skipped with a warning; if none can be read, raises
+        ``FileNotFoundError``.
         """
         candidates = [step] if step is not None else list(reversed(self.steps()))
         if not candidates:
             raise FileNotFoundError(f"no checkpoint in {self.directory}")
-        abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, abstract_state)
-        flat_abstract, paths = _flatten(abstract)
         errors = []
         for s in candidates:
             try:
+                if callable(abstract_state):
+                    stored = self.manager.restore(s, args=ocp.args.Composite(meta=ocp.args.JsonRestore())).meta
+                    abstract = abstract_state(dict(stored))
+                else:
+                    abstract = abstract_state
+                abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, abstract)
+                flat_abstract, paths = _flatten(abstract)
                 out = self.manager.restore(s, args=ocp.args.Composite(
                     state=ocp.args.StandardRestore(flat_abstract), meta=ocp.args.JsonRestore()))
                 if out.meta.get("leaf_paths") != paths:

@@ -59,6 +59,33 @@ def sample(state: ReplayState, key: jax.Array, batch_size: int) -> Transition:
     return jax.tree.map(lambda buf: buf[idx], state.data)
 
 
+def grow(state: ReplayState, capacity: int) -> ReplayState:
+    """The same buffer with a larger capacity (zero rows appended), for extending a run's budget.
+
+    Valid only for a buffer that has never overwritten a transition (it holds them in the order they
+    came, at rows ``0 .. size-1``): the result then equals the buffer a run with ``capacity`` from the
+    start would hold, since ``sample`` draws from the filled part only. Works on one seed's buffer or
+    on a seed-batched one (the capacity axis is the leading axis of ``reward`` either way).
+    The caller checks that no transition was overwritten; the defaults guarantee it (see
+    ``experiments.run``: a capacity grows only when it was the whole, smaller, budget)."""
+    old = state.capacity
+    if capacity < old:
+        raise ValueError(f"cannot shrink a replay buffer from {old} to {capacity}")
+    if capacity == old:
+        return state
+    axis = state.data.reward.ndim - 1  # 0 for one seed, 1 with a leading seed axis
+
+    def pad(x):
+        widths = [(0, 0)] * x.ndim
+        widths[axis] = (0, capacity - old)
+        return jnp.pad(x, widths)
+
+    # Never wrapped: the next row to write is row ``size`` (the old ring had wrapped ``ptr`` to 0
+    # when it was exactly full). A new array, not ``size`` itself (a donated state must not alias).
+    return ReplayState(data=jax.tree.map(pad, state.data), ptr=state.size % capacity, size=state.size,
+                       capacity=capacity)
+
+
 def nbytes(state: ReplayState) -> int:
     """Bytes held by the stored arrays (per seed)."""
     return sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(state.data))

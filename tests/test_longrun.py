@@ -68,6 +68,50 @@ def test_resume_continues_bit_for_bit_without_duplicate_metrics(reference, tmp_p
     _assert_same_run(reference, out)
 
 
+def test_extending_a_finished_run_equals_the_longer_run(reference, tmp_path):
+    """600 steps (replay capacity 600), then --steps=900: the 900-step reference, bit for bit."""
+    out = str(tmp_path / "run")
+    assert run.main(TINY + ["--steps=600", "--out", out]) == 0
+    short = json.load(open(os.path.join(out, "summary.json")))
+    assert short["env_steps"] == 600
+    assert run.main(["--resume", out, "--steps=900", "--quiet", "--no-plot"]) == 0
+    _assert_same_run(reference, out)
+    stored = json.load(open(os.path.join(out, "config.json")))
+    assert stored["config"]["run"]["total_steps"] == 900 and stored["run_args"]["steps"] == 900
+    assert [(e["from_steps"], e["to_steps"]) for e in stored["extensions"]] == [(600, 900)]
+    assert json.load(open(os.path.join(out, "summary_600.json"))) == short
+    summary = json.load(open(os.path.join(out, "summary.json")))
+    assert summary["env_steps"] == 900 and summary["extended_from_steps"] == 600
+    # The extended run is now a 900-step run: a plain resume finds nothing left, a shorter budget is refused.
+    assert run.main(["--resume", out, "--steps=600", "--quiet", "--no-plot"]) == 2
+
+
+def test_an_interrupted_extension_resumes_from_the_smaller_checkpoint(reference, tmp_path):
+    """The extension's config is stored before it trains: a plain --resume continues it, also from a
+    checkpoint written with the smaller replay capacity."""
+    out = str(tmp_path / "run")
+    assert run.main(TINY + ["--steps=600", "--out", out]) == 0
+    cfg_path = os.path.join(out, "config.json")
+    stored = json.load(open(cfg_path))
+    cfg = run.config_from_run_args({**stored["run_args"], "steps": 900})
+    run._record_extension(out, cfg, {**stored["run_args"], "steps": 900}, 600)  # as if killed right after
+    assert not os.path.exists(os.path.join(out, "summary.json"))
+    assert run.main(["--resume", out, "--quiet", "--no-plot"]) == 0
+    _assert_same_run(reference, out)
+
+
+def test_an_extension_must_change_the_budget_only(tmp_path, capsys):
+    out = str(tmp_path / "run")
+    assert run.main(TINY + ["--steps=600", "--out", out]) == 0
+    capsys.readouterr()
+    assert run.main(["--resume", out, "--steps=900", "--set", "ddpg.tau=0.5", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "extending it to 900 steps would also change: ddpg.tau" in err
+    assert run.main(["--resume", out, "--steps=300", "--quiet"]) == 2
+    assert "extended, not shortened" in capsys.readouterr().err
+    assert json.load(open(os.path.join(out, "config.json")))["config"]["run"]["total_steps"] == 600
+
+
 def test_sigkill_then_resume_gives_the_same_result(tmp_path):
     out = str(tmp_path / "killed")
     steps = ["--steps=2700"]
