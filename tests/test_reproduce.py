@@ -244,13 +244,14 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     (results / "table2.md").unlink()
     assert reproduce.main(argv) == 0
     out = capsys.readouterr().out
-    assert out.count("done, skipped") == 2 and "grid: 2 skipped" in out and "differs" not in out
+    assert out.count("done, skipped") == 2 and "grid: 2 skipped" in out and "stored budget" not in out
     assert (results / "table2.md").exists()
-    # Without --steps the paper's budget is asked for: the stored 600-step cells are kept, and said to differ.
+    # Without --steps the paper's budget is asked for: the finished 600-step cells would be extended.
     no_steps = [a for a in argv if a not in ("--steps", "600")]
     assert reproduce.main(no_steps + ["--dry-run"]) == 0
     out = capsys.readouterr().out
-    assert out.count("stored budget 600 differs from the requested 900,000; delete it to rerun") == 2
+    assert out.count("extending from 600 to 900,000 steps: python -m experiments.run") == 2
+    assert out.count("--steps=900000") == 2 and "grid: 2 would extend" in out
 
     # A cell with a checkpoint but no summary is resumed (with the same explicit options).
     (runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").unlink()
@@ -276,6 +277,17 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     assert rec["calls"][0]["commit"] == "f" * 40 and rec["wall_seconds"] == 1.0
     (cell / "config.json").write_text(json.dumps(cfg))
 
+    # A larger --steps extends a finished cell from its last checkpoint; the archive gets the longer cell.
+    assert reproduce.main(argv + ["--methods", "ddpg-paramnoise", "--steps", "900"]) == 0
+    out = capsys.readouterr().out
+    assert "extending from 600 to 900 steps" in out and "grid: 1 extended" in out
+    assert json.loads((cell / "summary.json").read_text())["env_steps"] == 900
+    assert json.loads((results / "cells" / "pendulum" / "ddpg-paramnoise" / "summary.json").read_text())[
+        "env_steps"] == 900
+    last = json.loads((cell / "reproduce.json").read_text())["calls"][-1]["argv"]
+    assert "--steps=900" in last and last[-2:] == ["--resume", str(cell)]
+    assert (cell / "summary_600.json").exists()
+
     # A fresh clone: no run folders, only the committed archive. Nothing is rerun and the table is the same.
     archived = results / "cells" / "pendulum" / "ddpg-paramnoise"
     assert (archived / "summary.json").exists() and (archived / "metrics.jsonl").exists()
@@ -286,6 +298,10 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     assert reproduce.main(argv) == 0
     out = capsys.readouterr().out
     assert out.count("done, skipped") == 2 and "grid: 2 skipped" in out and not runs.exists()
+    assert "stored budget 900 is above the requested 600" in out
+    assert reproduce.main(argv + ["--steps", "1200", "--dry-run"]) == 0
+    assert capsys.readouterr().out.count("is below the requested 1,200, and its run folder with the checkpoints "
+                                         "to extend is not here") == 2
     after = json.loads((results / "table2.json").read_text())["rows"]
     strip = lambda rows: [{m: {k: v for k, v in c.items() if k != "run_dir"} for m, c in r["methods"].items()}
                           for r in rows]
