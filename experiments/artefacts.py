@@ -379,11 +379,13 @@ def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str], bas
                 "run_commit": r.provenance.get("commit"), "backend": r.info.get("backend"),
                 "wall_seconds": cell_provenance(r)["wall_seconds"], "run_dir": r.path}
         a, b = row["methods"].get(META, {}), row["methods"].get(baseline, {})
+        row["welch"] = None
         if a.get("status") == "done" and b.get("status") == "done":
-            t, p = welch_test(a["per_seed"], b["per_seed"])
-            row["welch"] = {"t": t, "p": p, "difference": a["mean"] - b["mean"]}
-        else:
-            row["welch"] = None
+            if a["budget"] == b["budget"]:  # never a test between cells of different budgets (mid-extension)
+                t, p = welch_test(a["per_seed"], b["per_seed"])
+                row["welch"] = {"t": t, "p": p, "difference": a["mean"] - b["mean"]}
+            else:
+                row["welch_skipped"] = "budgets differ"
         rows.append(row)
     return rows
 
@@ -460,7 +462,8 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
            "|---|" + "---|" * len(names) + "---|---|---|"]
     for row in rows:
         w = row["welch"]
-        tail = (f"{fmt(w['difference'])} | {fmt(w['t'], 2)} | {fmt_p(w['p'])}" if w else "n/a | n/a | n/a")
+        na = f"n/a ({row['welch_skipped']})" if row.get("welch_skipped") else "n/a"
+        tail = (f"{fmt(w['difference'])} | {fmt(w['t'], 2)} | {fmt_p(w['p'])}" if w else f"{na} | n/a | n/a")
         md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
                   " | ".join(_ci_text(row["methods"][m]) for m in methods) + f" | {tail} |")
     md.append(footer)
@@ -847,7 +850,7 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
         w = row["welch"]
         lines.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
                      " | ".join(_cell_text(row["methods"][m]) for m in methods) +
-                     f" | {fmt_p(w['p']) if w else 'n/a'} |")
+                     f" | {fmt_p(w['p']) if w else row.get('welch_skipped', 'n/a')} |")
     lines.append(footer)
     path = os.path.join(out_dir, "README.md")
     with open(path, "w") as f:

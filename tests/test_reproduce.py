@@ -126,6 +126,23 @@ def test_table2_numbers_match_hand_computation(fabricated):
     np.testing.assert_allclose(got, b)
 
 
+def test_no_welch_test_between_cells_of_different_budgets(tmp_path):
+    """Mid-extension a row can hold cells of two budgets: they are shown, but not tested against each other."""
+    steps = np.arange(1, 21) * 1000
+    rng = np.random.default_rng(1)
+    fabricate_run(tmp_path / "paper" / "reacher" / "meta-independent", "reacher", "meta-independent",
+                  rng.normal(-10, 1, (3, 20)), steps)
+    fabricate_run(tmp_path / "paper" / "reacher" / "ddpg-paramnoise", "reacher", "ddpg-paramnoise",
+                  rng.normal(-12, 1, (3, 10)), steps[:10])
+    results = artefacts.collect(str(tmp_path / "paper"), ["reacher"])
+    row = artefacts.table2_rows(results, ["reacher"], list(artefacts.METHODS))[0]
+    assert row["methods"]["meta-independent"]["budget"] == 20000 and row["methods"]["ddpg-paramnoise"]["budget"] == 10000
+    assert row["welch"] is None and row["welch_skipped"] == "budgets differ"
+    artefacts.write_table2([row], list(artefacts.METHODS), str(tmp_path / "out"), "", "paper")
+    md = (tmp_path / "out" / "table2.md").read_text()
+    assert "| n/a (budgets differ) | n/a | n/a |" in md
+
+
 def test_steps_to_threshold(fabricated):
     steps, data = fabricated["steps"], fabricated["data"]
     threshold = data["ddpg-paramnoise"].mean(0).max()
