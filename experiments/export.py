@@ -35,17 +35,16 @@ def main(argv: list[str] | None = None) -> int:
     from metapg_jax import config as config_lib
     from metapg_jax.checkpoint import Checkpointer
     from metapg_jax.policy import export_policies
-    from metapg_jax.train import make_train, seed_keys
+    from metapg_jax.train import checkpoint_shapes, make_train, seed_keys
 
     with open(path) as f:
         stored = json.load(f)
     cfg = config_lib.from_dict(stored["config"])
     a = stored["run_args"]
     trainer = make_train(cfg)
-    abstract = jax.eval_shape(jax.vmap(trainer.init), seed_keys(a["seed"], a["seeds"]))
     ckpt = Checkpointer(os.path.join(args.run_dir, "checkpoints"))
     try:
-        state, meta = ckpt.restore(abstract, step=args.chunk)
+        state, meta = ckpt.restore(checkpoint_shapes(trainer, seed_keys(a["seed"], a["seeds"])), step=args.chunk)
     except FileNotFoundError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -178,13 +178,13 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
             if s["env_steps"] < wanted and out != archived and os.path.isdir(os.path.join(out, "checkpoints")):
                 state = "extend"  # a finished shorter run: continue it to the requested budget
         if state == "done":
-            if s.get("env_steps") == wanted:
+            if s["env_steps"] == wanted:
                 note = ""
             elif s["env_steps"] < wanted:
-                note = (f" (stored budget {s.get('env_steps'):,} is below the requested {wanted:,}, and its run "
+                note = (f" (stored budget {s['env_steps']:,} is below the requested {wanted:,}, and its run "
                         f"folder with the checkpoints to extend is not here; delete it to rerun)")
             else:
-                note = f" (stored budget {s.get('env_steps'):,} is above the requested {wanted:,}; delete it to rerun)"
+                note = f" (stored budget {s['env_steps']:,} is above the requested {wanted:,}; delete it to rerun)"
             print(f"{tag}: done, skipped: final eval return {s['final_eval_return_mean']:.1f} ± "
                   f"{s['final_eval_return_std']:.1f} over {s['num_seeds']} seeds, {s['env_steps']:,} steps{note}",
                   flush=True)

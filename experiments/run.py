@@ -261,7 +261,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
 
     from metapg_jax import reporting, replay
     from metapg_jax.checkpoint import Checkpointer
-    from metapg_jax.train import SEED_AXIS, make_train, seed_keys, vmap_seeds
+    from metapg_jax.train import SEED_AXIS, checkpoint_shapes, make_train, seed_keys, vmap_seeds
 
     num_seeds, seed = a["seeds"], a["seed"]
     main_process = jax.process_index() == 0
@@ -292,17 +292,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
     checkpointer = Checkpointer(os.path.join(out, "checkpoints"))
     start = 0
     if resume:
-        abstract = jax.eval_shape(init_fn, keys)
-
-        def stored_shapes(meta):  # a checkpoint written before an extension has the smaller replay capacity
-            capacity = config_lib.from_dict(meta["config"]).buffer_capacity
-            if capacity == cfg.buffer_capacity:
-                return abstract
-            buffer = jax.eval_shape(jax.vmap(lambda _: replay.init(
-                capacity, trainer.ddpg.obs_size, trainer.ddpg.action_size)), keys)
-            return abstract.replace(buffer=buffer)
-
-        state, meta = checkpointer.restore(stored_shapes)
+        state, meta = checkpointer.restore(checkpoint_shapes(trainer, keys))
         if state.buffer.capacity != cfg.buffer_capacity:
             # Only min(1e6, budget) capacities grow, from a smaller budget below 1e6 that the buffer held
             # whole: no transition was overwritten (checked), so growing equals the longer run's buffer.

@@ -258,6 +258,24 @@ class Trainer:
         return jax.lax.scan(lambda s, _: self.train_chunk(s), state, None, length=self.config.num_chunks)
 
 
+def checkpoint_shapes(trainer: Trainer, keys: jax.Array):
+    """``Checkpointer.restore``'s ``abstract_state`` for a run's seed-batched checkpoints: the trainer's
+    state shapes, with the replay capacity of the config each checkpoint was written with (a run
+    extended to a larger budget keeps checkpoints of the smaller capacity; ``replay.grow`` widens them)."""
+    from metapg_jax.config import from_dict
+
+    abstract = jax.eval_shape(vmap_seeds(trainer.init), keys)
+
+    def shapes(meta: dict):
+        capacity = from_dict(meta["config"]).buffer_capacity
+        if capacity == trainer.config.buffer_capacity:
+            return abstract
+        obs, act = trainer.ddpg.obs_size, trainer.ddpg.action_size
+        return abstract.replace(buffer=jax.eval_shape(jax.vmap(lambda _: replay.init(capacity, obs, act)), keys))
+
+    return shapes
+
+
 def make_train(config: Config, env: Env | None = None) -> Trainer:
     """Validates ``config`` and builds the trainer (``env`` defaults to ``envs.make`` of the config)."""
     import envs

@@ -74,6 +74,7 @@ def test_extending_a_finished_run_equals_the_longer_run(reference, tmp_path):
     assert run.main(TINY + ["--steps=600", "--out", out]) == 0
     short = json.load(open(os.path.join(out, "summary.json")))
     assert short["env_steps"] == 600
+    short_policy = _policy_arrays(out)
     assert run.main(["--resume", out, "--steps=900", "--quiet", "--no-plot"]) == 0
     _assert_same_run(reference, out)
     stored = json.load(open(os.path.join(out, "config.json")))
@@ -82,8 +83,20 @@ def test_extending_a_finished_run_equals_the_longer_run(reference, tmp_path):
     assert json.load(open(os.path.join(out, "summary_600.json"))) == short
     summary = json.load(open(os.path.join(out, "summary.json")))
     assert summary["env_steps"] == 900 and summary["extended_from_steps"] == 600
-    # The extended run is now a 900-step run: a plain resume finds nothing left, a shorter budget is refused.
+    # The extended run is now a 900-step run: a shorter budget is refused.
     assert run.main(["--resume", out, "--steps=600", "--quiet", "--no-plot"]) == 2
+    # Its checkpoint after chunk 2 was written by the 600-step run (replay capacity 600): still exportable.
+    from experiments import export
+
+    ck = Checkpointer(os.path.join(out, "checkpoints"))
+    assert ck.steps() == [2, 3]
+    ck.close()
+    assert export.main([out, "--chunk", "2", "--out", str(tmp_path / "p2.npz")]) == 0
+    with np.load(tmp_path / "p2.npz") as f:
+        exported = {k: f[k] for k in f.files if k != "description"}
+    assert exported.keys() == short_policy.keys()
+    for k in exported:
+        np.testing.assert_array_equal(exported[k], short_policy[k], err_msg=k)
 
 
 def test_an_interrupted_extension_resumes_from_the_smaller_checkpoint(reference, tmp_path):
