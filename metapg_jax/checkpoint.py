@@ -66,24 +66,19 @@ class Checkpointer:
         errors = []
         for s in candidates:
             try:
-                if callable(abstract_state):
-                    stored = self.manager.restore(s, args=ocp.args.Composite(meta=ocp.args.JsonRestore())).meta
-                    abstract = abstract_state(dict(stored))
-                else:
-                    abstract = abstract_state
+                # The metadata first (it can decide the shapes), then the state alone.
+                meta = dict(self.manager.restore(s, args=ocp.args.Composite(meta=ocp.args.JsonRestore())).meta)
+                abstract = abstract_state(meta) if callable(abstract_state) else abstract_state
                 abstract = jax.tree.map(ocp.utils.to_shape_dtype_struct, abstract)
                 flat_abstract, paths = _flatten(abstract)
-                out = self.manager.restore(s, args=ocp.args.Composite(
-                    state=ocp.args.StandardRestore(flat_abstract), meta=ocp.args.JsonRestore()))
-                if out.meta.get("leaf_paths") != paths:
+                if meta.pop("leaf_paths", None) != paths:
                     raise ValueError("the checkpoint holds a state of another structure")
+                out = self.manager.restore(s, args=ocp.args.Composite(state=ocp.args.StandardRestore(flat_abstract)))
                 state = _unflatten(abstract, out.state)
                 if errors:
                     warnings.warn(f"checkpoint(s) {', '.join(e[0] for e in errors)} in {self.directory} could not be "
                                   f"read ({errors[0][1]}); resumed from the one after {s} chunks instead",
                                   RuntimeWarning, stacklevel=2)
-                meta = dict(out.meta)
-                meta.pop("leaf_paths")
                 return state, meta
             except Exception as err:  # noqa: BLE001 - any failure to read means: try the previous one
                 errors.append((str(s), f"{type(err).__name__}: {str(err)[:200]}"))
