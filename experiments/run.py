@@ -19,7 +19,9 @@ states of the exploring policy and the student, early and late, per seed),
 not) to N env steps per seed: it continues from the latest checkpoint and ends where a run started
 with ``--steps=N`` would, with the same numbers (nothing in training depends on the budget except
 the replay capacity, min(1e6, budget), and a buffer that has never overwritten a transition grows
-to the larger capacity unchanged; tested). Every other setting must stay the same. config.json
+to the larger capacity unchanged; tested). Every other setting must stay the same; the evaluation
+interval, which a budget under ten task intervals derives from the budget, stays the stored one
+(the run then equals one started with ``--steps=N --set run.eval_every=<stored>``). config.json
 then holds the new budget and an ``extensions`` list; the shorter run's summary is kept as
 ``summary_<steps>.json``.
 
@@ -161,6 +163,12 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
                 raise ValueError(f"--resume {out}: --steps={new_steps} is below the stored budget of {old_steps:,} "
                                  f"env steps; a run can be extended, not shortened")
             extend_from = old_steps
+            # Below ten task intervals the evaluation interval is derived from the budget
+            # (config.make_config); an extension keeps the stored one unless it is given.
+            stored_every = stored["config"]["run"]["eval_every"]
+            if cfg.run.eval_every != stored_every and "run.eval_every" not in parse_overrides(a["overrides"]):
+                a = {**a, "overrides": list(a["overrides"]) + [f"run.eval_every={stored_every}"]}
+                cfg = config_from_run_args(a)
         # An extension changes the budget only (see the module docstring).
         same_budget = {**stored["config"], "run": {**stored["config"]["run"], "total_steps": new_steps}}
         differences = config_lib.diff(same_budget, config_lib.to_dict(cfg))
@@ -186,8 +194,8 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    _maybe_initialize_distributed()
     try:
+        _maybe_initialize_distributed()
         cfg, a, out, resume, extend_from = prepare(args)
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
@@ -202,16 +210,25 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _maybe_initialize_distributed() -> None:
-    """Multi-host: ``jax.distributed.initialize()`` when the coordinator is configured.
+    """Multi-host: ``jax.distributed.initialize()`` when JAX_COORDINATOR_ADDRESS is set.
 
-    Set JAX_COORDINATOR_ADDRESS (host:port of process 0), JAX_NUM_PROCESSES and
-    JAX_PROCESS_ID on every host (or run under SLURM/Open MPI, which JAX
-    detects); the seed axis is then sharded over the devices of all hosts.
+    Set on every host JAX_COORDINATOR_ADDRESS (host:port of process 0) and, unless the processes
+    were launched by SLURM's ``srun`` or Open MPI's ``mpirun`` (whose variables JAX reads itself),
+    JAX_NUM_PROCESSES and JAX_PROCESS_ID; the seed axis is then sharded over the devices of all
+    hosts. Without JAX_COORDINATOR_ADDRESS every process runs on its own devices only.
     """
-    if os.environ.get("JAX_COORDINATOR_ADDRESS"):
-        import jax
+    if not os.environ.get("JAX_COORDINATOR_ADDRESS"):
+        return
+    kwargs = {}
+    for var, name in (("JAX_NUM_PROCESSES", "num_processes"), ("JAX_PROCESS_ID", "process_id")):
+        value = os.environ.get(var, "").strip()
+        if value:
+            if not value.isdigit():
+                raise ValueError(f"{var} must be a non-negative integer, got {value!r}")
+            kwargs[name] = int(value)
+    import jax
 
-        jax.distributed.initialize()
+    jax.distributed.initialize(**kwargs)
 
 
 class _Interrupt:

@@ -79,3 +79,49 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     assert visits["explore_early"].shape == (2, 64, 3) and int(visits["explore_count"][0]) == 2 * 100
     cycles = [json.loads(line) for line in (out / "cycles.jsonl").read_text().splitlines()]
     assert len(cycles) == 2 * (600 // 300) and "meta_reward" in cycles[0]
+
+
+def _stored_run(out, argv):
+    """A run folder as `experiments.run` leaves it before training (config.json, checkpoints/)."""
+    args = run.build_parser().parse_args(argv)
+    a = run.run_args(args)
+    cfg = run.config_from_run_args(a)
+    os.makedirs(os.path.join(out, "checkpoints"))
+    with open(os.path.join(out, "config.json"), "w") as f:
+        json.dump({"run_args": a, "config": run.config_lib.to_dict(cfg)}, f)
+    return cfg
+
+
+def test_an_extension_keeps_a_budget_derived_evaluation_interval(tmp_path, capsys):
+    """Under ten task intervals the default interval follows the budget; extending keeps the stored one."""
+    out = str(tmp_path / "run")
+    short = _stored_run(out, ["--env=pendulum", "--method=meta", "--steps=3000", "--out", out])
+    longer = run.config_from_run_args({**run.RUN_ARGS, "env": "pendulum", "method": "meta", "steps": 9000})
+    assert longer.run.eval_every != short.run.eval_every        # else this test checks nothing
+    cfg, a, _, resume, extend_from = run.prepare(run.build_parser().parse_args(["--resume", out, "--steps=9000"]))
+    assert resume and extend_from == 3000
+    assert cfg.run.total_steps == 9000 and cfg.run.eval_every == short.run.eval_every
+    assert f"run.eval_every={short.run.eval_every}" in a["overrides"]  # stored with the extension
+    # An interval given explicitly is a change like any other.
+    assert run.main(["--resume", out, "--steps=9000", "--set", f"run.eval_every={longer.run.eval_every}"]) == 2
+    assert "would also change: run.eval_every" in capsys.readouterr().err
+
+
+def test_distributed_initialisation_reads_the_coordinator_variables(monkeypatch):
+    import jax
+
+    calls = []
+    monkeypatch.setattr(jax.distributed, "initialize", lambda **kw: calls.append(kw))
+    for var in ("JAX_COORDINATOR_ADDRESS", "JAX_NUM_PROCESSES", "JAX_PROCESS_ID"):
+        monkeypatch.delenv(var, raising=False)
+    run._maybe_initialize_distributed()
+    assert calls == []                                   # one process: nothing to initialise
+    monkeypatch.setenv("JAX_COORDINATOR_ADDRESS", "10.0.0.1:1234")
+    run._maybe_initialize_distributed()                  # SLURM / Open MPI: JAX reads the rest itself
+    monkeypatch.setenv("JAX_NUM_PROCESSES", "4")
+    monkeypatch.setenv("JAX_PROCESS_ID", "2")
+    run._maybe_initialize_distributed()
+    assert calls == [{}, {"num_processes": 4, "process_id": 2}]
+    monkeypatch.setenv("JAX_PROCESS_ID", "two")
+    with pytest.raises(ValueError, match="JAX_PROCESS_ID must be a non-negative integer"):
+        run._maybe_initialize_distributed()
