@@ -23,7 +23,8 @@ from that archive, and writes, under the results folder:
 * ``teacher_designs_idp.png``: independent vs variance teacher vs DDPG on
   InvertedDoublePendulum (Figure 2);
 * ``visitation_<task>.png``: states visited by the teacher, the student and
-  DDPG, early and late, jointly embedded in 2-D with density contours (Figure 4);
+  DDPG, early and late, jointly embedded in 2-D with density contours (Figure 4,
+  InvertedDoublePendulum in the paper), for every task whose two cells stored them;
 * ``README.md`` (what is there and how it was made) and ``manifest.json``
   (provenance: commit, machine, and per cell its config, seeds, budget, wall time).
 
@@ -688,21 +689,26 @@ def embed_2d(x: np.ndarray, method: str = "tsne", seed: int = 0) -> np.ndarray:
     return out
 
 
-def write_visitation(results: dict, out_dir: str, build: dict, task: str | None = None, embedding: str = "tsne",
-                     points_per_panel: int = 500, seed: int = 0, baseline: str = BASELINE) -> list[str]:
-    """``visitation_<task>.png``: teacher / student (meta-independent) and DDPG (``baseline``) states, early and
-    late, jointly embedded in 2-D, with Gaussian-KDE contours (the paper's Figure 4)."""
-    candidates = [task] if task else ["inverted_double_pendulum"] + [t for t in TASKS if t != "inverted_double_pendulum"]
-    for t in candidates:
-        a, b = results.get((t, META)), results.get((t, baseline))
+def write_visitation(results: dict, out_dir: str, build: dict, tasks: Sequence[str] = TASKS,
+                     embedding: str = "tsne", points_per_panel: int = 500, seed: int = 0,
+                     baseline: str = BASELINE) -> list[str]:
+    """``visitation_<task>.png`` for each of ``tasks`` whose Meta (independent) and DDPG (``baseline``) cells
+    both stored ``visits.npz``: teacher / student and DDPG states, early and late, jointly embedded in 2-D,
+    with Gaussian-KDE contours (the paper's Figure 4, on InvertedDoublePendulum there)."""
+    files = []
+    for task in tasks:
+        a, b = results.get((task, META)), results.get((task, baseline))
         if a is None or b is None:
             continue
         pa, pb = os.path.join(a.path, "visits.npz"), os.path.join(b.path, "visits.npz")
         if os.path.exists(pa) and os.path.exists(pb):
-            task = t
-            break
-    else:
-        return []
+            files += _write_visitation_figure(task, a.config["meta"]["visit_samples"], pa, pb, out_dir, build,
+                                              embedding, points_per_panel, seed, baseline)
+    return files
+
+
+def _write_visitation_figure(task: str, visit_samples: int, pa: str, pb: str, out_dir: str, build: dict,
+                             embedding: str, points_per_panel: int, seed: int, baseline: str) -> list[str]:
     with np.load(pa) as va, np.load(pb) as vb:
         groups = visitation_groups(dict(va), dict(vb))
     rng = np.random.default_rng(seed)
@@ -745,7 +751,7 @@ def write_visitation(results: dict, out_dir: str, build: dict, task: str | None 
     for ax in axes[:, 0]:
         ax.set_ylabel(f"{embedding} 2")
     fig.suptitle(f"State visitation on {TASK_NAMES.get(task, task)}: first vs latest "
-                 f"{a.config['meta']['visit_samples']} states per seed ({embedding}, "
+                 f"{visit_samples} states per seed ({embedding}, "
                  f"≤{points_per_panel} points per panel)", fontsize=10)
     fig.tight_layout()
     path = os.path.join(out_dir, f"visitation_{task}.png")
@@ -762,7 +768,7 @@ def results_dir_for(results_dir: str, preset: str) -> str:
 
 
 def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Sequence[str] = TASKS,
-              methods: Sequence[str] = tuple(METHODS), embedding: str = "tsne", visitation_task: str | None = None,
+              methods: Sequence[str] = tuple(METHODS), embedding: str = "tsne", visitation_tasks: Sequence[str] | None = None,
               points_per_panel: int = 500, extra_provenance: dict | None = None) -> dict:
     """Rebuilds every artefact from ``<runs_dir>/<preset>/<task>/<method>``; returns the manifest.
 
@@ -788,8 +794,8 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
     files += write_steps_to_threshold(steps_to_threshold_rows(results, tasks, methods, baseline), out_dir, footer, preset,
                                       build["commit"])
     files += write_teacher_designs(results, out_dir, build, preset)
-    files += write_visitation(results, out_dir, build, visitation_task, embedding, points_per_panel,
-                              baseline=baseline)
+    files += write_visitation(results, out_dir, build, tasks if visitation_tasks is None else visitation_tasks,
+                              embedding, points_per_panel, baseline=baseline)
     manifest = {"build": build, "files": [os.path.relpath(p, out_dir) for p in files] + ["README.md"],
                 "cells": [cell_provenance(r) for r in results.values()],
                 "not_run": [[t, m] for t in tasks for m in methods if (t, m) not in results]}
@@ -858,6 +864,12 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
     return path
 
 
+def add_visitation_task_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--visitation-task", action="append", choices=TASKS, default=None,
+                   help="build the state-visitation figure for this task only (repeatable; default: every task "
+                        "whose Meta (independent) and DDPG baseline cells stored their visited states)")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments.artefacts",
                                 description="Rebuild Table 2 and the figures from stored run folders.")
@@ -865,15 +877,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--results-dir", default="results", help="output folder (a non-paper preset goes to <dir>/<preset>)")
     p.add_argument("--preset", default="paper", choices=("paper", "modern"))
     p.add_argument("--embedding", default="tsne", choices=("tsne", "pca"), help="state-visitation embedding")
-    p.add_argument("--visitation-task", default=None, help="task of the visitation figure (default: IDP, else the "
-                                                            "first task with both runs)")
+    add_visitation_task_option(p)
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     manifest = build_all(args.runs_dir, args.results_dir, args.preset, embedding=args.embedding,
-                         visitation_task=args.visitation_task)
+                         visitation_tasks=args.visitation_task)
     out = results_dir_for(args.results_dir, args.preset)
     print(f"wrote {len(manifest['files'])} artefacts to {out} from {len(manifest['cells'])} stored cells")
     return 0

@@ -71,8 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--artefacts-only", action="store_true", help="train nothing; rebuild the artefacts only")
     p.add_argument("--embedding", default="tsne", choices=("tsne", "pca"),
                    help="2-D embedding of the state-visitation figure (pca is fast)")
-    p.add_argument("--visitation-task", default=None,
-                   help="task of the visitation figure (default inverted_double_pendulum, else the first with runs)")
+    artefacts.add_visitation_task_option(p)
     p.add_argument("--no-plot", action="store_true", help="skip each run's own PNGs (the artefacts are still drawn)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--dry-run", action="store_true", help="print what would be run, skipped or resumed; do nothing")
@@ -247,7 +246,7 @@ def main(argv: list[str] | None = None) -> int:
         return status
     manifest = artefacts.build_all(
         args.runs_dir, args.results_dir, args.preset, embedding=args.embedding,
-        visitation_task=args.visitation_task,
+        visitation_tasks=args.visitation_task,
         extra_provenance={"reproduce_argv": sys.argv[1:] if argv is None else list(argv),
                           "requested": {"tasks": tasks, "methods": methods, "seeds": args.seeds, "seed": args.seed,
                                         "steps": args.steps, "overrides": args.overrides},

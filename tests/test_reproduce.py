@@ -357,3 +357,27 @@ def test_teacher_designs_notebook_runs_in_tiny_mode(monkeypatch):
     images = [o for c in nb.cells if c.cell_type == "code" for o in c.get("outputs", [])
               if o.get("output_type") == "display_data" and "image/png" in o.get("data", {})]
     assert len(images) >= 3
+
+
+def test_a_visitation_figure_per_task_with_both_samples(tmp_path):
+    """Every task whose Meta (independent) and DDPG baseline cells stored visited states gets a figure
+    (default); --visitation-task restricts it; a task without the DDPG cell gets none."""
+    rng = np.random.default_rng(2)
+    steps = np.arange(1, 6) * 1000
+    for task, obs, methods in (("pendulum", 3, ("meta-independent", "ddpg-paramnoise")),
+                               ("reacher", 10, ("meta-independent", "ddpg-paramnoise")),
+                               ("hopper", 11, ("meta-independent",))):
+        for method in methods:
+            fabricate_run(tmp_path / "paper" / task / method, task, method, rng.normal(0, 1, (2, 5)), steps,
+                          visit_obs=obs)
+    tasks = ("pendulum", "reacher", "hopper")
+    manifest = artefacts.build_all(str(tmp_path), str(tmp_path / "all"), "paper", tasks=tasks, embedding="pca",
+                                   points_per_panel=30)
+    assert sorted(f for f in manifest["files"] if f.startswith("visitation_")) == \
+        ["visitation_pendulum.png", "visitation_reacher.png"]
+    manifest = artefacts.build_all(str(tmp_path), str(tmp_path / "one"), "paper", tasks=tasks, embedding="pca",
+                                   points_per_panel=30, visitation_tasks=["reacher"])
+    assert [f for f in manifest["files"] if f.startswith("visitation_")] == ["visitation_reacher.png"]
+    assert not (tmp_path / "one" / "visitation_pendulum.png").exists()
+    with pytest.raises(SystemExit):
+        artefacts.build_parser().parse_args(["--visitation-task", "cartpole"])
