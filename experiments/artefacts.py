@@ -47,6 +47,7 @@ import argparse
 import csv
 import dataclasses
 import datetime
+import glob
 import json
 import math
 import os
@@ -794,7 +795,10 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
     files += write_steps_to_threshold(steps_to_threshold_rows(results, tasks, methods, baseline), out_dir, footer, preset,
                                       build["commit"])
     files += write_teacher_designs(results, out_dir, build, preset)
-    files += write_visitation(results, out_dir, build, tasks if visitation_tasks is None else visitation_tasks,
+    for stale in glob.glob(os.path.join(out_dir, "visitation_*.png")):  # only what this build draws stays
+        os.remove(stale)
+    files += write_visitation(results, out_dir, build,
+                              tasks if visitation_tasks is None else list(dict.fromkeys(visitation_tasks)),
                               embedding, points_per_panel, baseline=baseline)
     manifest = {"build": build, "files": [os.path.relpath(p, out_dir) for p in files] + ["README.md"],
                 "cells": [cell_provenance(r) for r in results.values()],

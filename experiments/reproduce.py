@@ -132,6 +132,14 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
     return argv
 
 
+def requested_config(args: argparse.Namespace, task: str, method: str):
+    """The config a fresh run of this cell at the requested budget gets (validated)."""
+    from experiments import run as run_lib
+
+    parsed = run_lib.build_parser().parse_args(cell_argv(args, task, method, os.devnull, "new"))
+    return run_lib.config_from_run_args(run_lib.run_args(parsed))
+
+
 def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, started: dict) -> None:
     """``reproduce.json`` in the cell: commit, machine, command, status and accumulated wall time.
 
@@ -174,11 +182,21 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         if state == "done":
             with open(os.path.join(out, "summary.json")) as f:
                 s = json.load(f)
-            if s["env_steps"] < wanted and out != archived and os.path.isdir(os.path.join(out, "checkpoints")):
+            extendable = (s["env_steps"] < wanted and out != archived
+                          and os.path.isdir(os.path.join(out, "checkpoints")))
+            stored_every = artefacts.read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
+            wanted_every = requested_config(args, task, method).run.eval_every if extendable else stored_every
+            if extendable and stored_every == wanted_every:
                 state = "extend"  # a finished shorter run: continue it to the requested budget
         if state == "done":
             if s["env_steps"] == wanted:
                 note = ""
+            elif s["env_steps"] < wanted and stored_every != wanted_every:
+                # An extension keeps its evaluation interval; the cell would not be evaluated where the
+                # requested budget's cells are (Table 2's final window, steps-to-threshold).
+                note = (f" (stored budget {s['env_steps']:,} is below the requested {wanted:,}, but its evaluation "
+                        f"interval {stored_every:,} is not the {wanted_every:,} of a run at that budget, so it is "
+                        f"not extended; delete it to rerun)")
             elif s["env_steps"] < wanted:
                 note = (f" (stored budget {s['env_steps']:,} is below the requested {wanted:,}, and its run "
                         f"folder with the checkpoints to extend is not here; delete it to rerun)")

@@ -19,9 +19,10 @@ states of the exploring policy and the student, early and late, per seed),
 not) to N env steps per seed: it continues from the latest checkpoint and ends where a run started
 with ``--steps=N`` would, with the same numbers (nothing in training depends on the budget except
 the replay capacity, min(1e6, budget), and a buffer that has never overwritten a transition grows
-to the larger capacity unchanged; tested). Every other setting must stay the same; the evaluation
-interval, which a budget under ten task intervals derives from the budget, stays the stored one
-(the run then equals one started with ``--steps=N --set run.eval_every=<stored>``). config.json
+to the larger capacity unchanged; tested). Every other setting must stay the same; where the
+default evaluation interval is derived from the budget (budgets under ten task intervals or not a
+multiple of one), the stored interval is kept (the run then equals one started with ``--steps=N
+--set run.eval_every=<stored>``). config.json
 then holds the new budget and an ``extensions`` list; the shorter run's summary is kept as
 ``summary_<steps>.json``.
 
@@ -163,10 +164,14 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
                 raise ValueError(f"--resume {out}: --steps={new_steps} is below the stored budget of {old_steps:,} "
                                  f"env steps; a run can be extended, not shortened")
             extend_from = old_steps
-            # Below ten task intervals the evaluation interval is derived from the budget
-            # (config.make_config); an extension keeps the stored one unless it is given.
+            # Where the default evaluation interval is derived from the budget (config.make_config: budgets
+            # under ten task intervals, or not a multiple of one), an extension keeps the stored interval.
             stored_every = stored["config"]["run"]["eval_every"]
             if cfg.run.eval_every != stored_every and "run.eval_every" not in parse_overrides(a["overrides"]):
+                if new_steps % stored_every:
+                    raise ValueError(f"--resume {out}: the run's evaluation interval, {stored_every:,} env steps, "
+                                     f"does not divide --steps={new_steps:,}; extend it to a multiple of "
+                                     f"{stored_every:,} or start a new run")
                 a = {**a, "overrides": list(a["overrides"]) + [f"run.eval_every={stored_every}"]}
                 cfg = config_from_run_args(a)
         # An extension changes the budget only (see the module docstring).
@@ -219,6 +224,10 @@ def _maybe_initialize_distributed() -> None:
     """
     if not os.environ.get("JAX_COORDINATOR_ADDRESS"):
         return
+    import jax
+
+    if jax.distributed.is_initialized():  # experiments.reproduce runs many cells in one process
+        return
     kwargs = {}
     for var, name in (("JAX_NUM_PROCESSES", "num_processes"), ("JAX_PROCESS_ID", "process_id")):
         value = os.environ.get(var, "").strip()
@@ -226,8 +235,6 @@ def _maybe_initialize_distributed() -> None:
             if not value.isdigit():
                 raise ValueError(f"{var} must be a non-negative integer, got {value!r}")
             kwargs[name] = int(value)
-    import jax
-
     jax.distributed.initialize(**kwargs)
 
 

@@ -93,7 +93,7 @@ def _stored_run(out, argv):
 
 
 def test_an_extension_keeps_a_budget_derived_evaluation_interval(tmp_path, capsys):
-    """Under ten task intervals the default interval follows the budget; extending keeps the stored one."""
+    """Where the default interval follows the budget (here under ten task intervals), extending keeps the stored one."""
     out = str(tmp_path / "run")
     short = _stored_run(out, ["--env=pendulum", "--method=meta", "--steps=3000", "--out", out])
     longer = run.config_from_run_args({**run.RUN_ARGS, "env": "pendulum", "method": "meta", "steps": 9000})
@@ -105,13 +105,23 @@ def test_an_extension_keeps_a_budget_derived_evaluation_interval(tmp_path, capsy
     # An interval given explicitly is a change like any other.
     assert run.main(["--resume", out, "--steps=9000", "--set", f"run.eval_every={longer.run.eval_every}"]) == 2
     assert "would also change: run.eval_every" in capsys.readouterr().err
+    # As `experiments.run` records it before training: a later plain --resume continues the extension.
+    run._record_extension(out, cfg, a, 3000)
+    cfg2, a2, _, _, extend_from = run.prepare(run.build_parser().parse_args(["--resume", out]))
+    assert extend_from is None and cfg2 == cfg and a2["overrides"] == a["overrides"]
+    # A budget the stored interval does not divide is refused with the reason.
+    other = str(tmp_path / "other")
+    assert _stored_run(other, ["--env=pendulum", "--method=meta", "--steps=6000", "--out", other]).run.eval_every == 600
+    assert run.main(["--resume", other, "--steps=9900"]) == 2
+    assert "evaluation interval, 600 env steps, does not divide --steps=9,900" in capsys.readouterr().err
 
 
-def test_distributed_initialisation_reads_the_coordinator_variables(monkeypatch):
+def test_distributed_initialisation_reads_the_coordinator_variables(monkeypatch, capsys):
     import jax
 
     calls = []
     monkeypatch.setattr(jax.distributed, "initialize", lambda **kw: calls.append(kw))
+    monkeypatch.setattr(jax.distributed, "is_initialized", lambda: False)
     for var in ("JAX_COORDINATOR_ADDRESS", "JAX_NUM_PROCESSES", "JAX_PROCESS_ID"):
         monkeypatch.delenv(var, raising=False)
     run._maybe_initialize_distributed()
@@ -125,3 +135,11 @@ def test_distributed_initialisation_reads_the_coordinator_variables(monkeypatch)
     monkeypatch.setenv("JAX_PROCESS_ID", "two")
     with pytest.raises(ValueError, match="JAX_PROCESS_ID must be a non-negative integer"):
         run._maybe_initialize_distributed()
+    assert run.main(["--env=pendulum", "--steps=300"]) == 2  # one error line, before anything compiles
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["error: JAX_PROCESS_ID must be a non-negative integer, got 'two'"]
+    # Initialised already (reproduce runs every cell in one process): not again.
+    monkeypatch.setattr(jax.distributed, "is_initialized", lambda: True)
+    monkeypatch.setenv("JAX_PROCESS_ID", "2")
+    run._maybe_initialize_distributed()
+    assert len(calls) == 2

@@ -269,6 +269,11 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     out = capsys.readouterr().out
     assert out.count("extending from 600 to 900,000 steps: python -m experiments.run") == 2
     assert out.count("--steps=900000") == 2 and "grid: 2 would extend" in out
+    # A cell whose evaluation interval is not the one a run at the requested budget gets is not extended.
+    assert reproduce.main(argv + ["--steps", "1200", "--set", "run.eval_every=600", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("its evaluation interval 300 is not the 600 of a run at that budget") == 2
+    assert "grid: 2 skipped" in out
 
     # A cell with a checkpoint but no summary is resumed (with the same explicit options).
     (runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").unlink()
@@ -375,9 +380,11 @@ def test_a_visitation_figure_per_task_with_both_samples(tmp_path):
                                    points_per_panel=30)
     assert sorted(f for f in manifest["files"] if f.startswith("visitation_")) == \
         ["visitation_pendulum.png", "visitation_reacher.png"]
-    manifest = artefacts.build_all(str(tmp_path), str(tmp_path / "one"), "paper", tasks=tasks, embedding="pca",
-                                   points_per_panel=30, visitation_tasks=["reacher"])
+    # Rebuilt into the same folder for one task: the other task's figure goes (it is not in the manifest).
+    manifest = artefacts.build_all(str(tmp_path), str(tmp_path / "all"), "paper", tasks=tasks, embedding="pca",
+                                   points_per_panel=30, visitation_tasks=["reacher", "reacher"])
     assert [f for f in manifest["files"] if f.startswith("visitation_")] == ["visitation_reacher.png"]
-    assert not (tmp_path / "one" / "visitation_pendulum.png").exists()
+    assert not (tmp_path / "all" / "visitation_pendulum.png").exists()
+    assert (tmp_path / "all" / "visitation_reacher.png").exists()
     with pytest.raises(SystemExit):
         artefacts.build_parser().parse_args(["--visitation-task", "cartpole"])
