@@ -182,12 +182,12 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         if state == "done":
             with open(os.path.join(out, "summary.json")) as f:
                 s = json.load(f)
-            extendable = (s["env_steps"] < wanted and out != archived
-                          and os.path.isdir(os.path.join(out, "checkpoints")))
-            stored_every = artefacts.read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
-            wanted_every = requested_config(args, task, method).run.eval_every if extendable else stored_every
-            if extendable and stored_every == wanted_every:
-                state = "extend"  # a finished shorter run: continue it to the requested budget
+            stored_every = wanted_every = None
+            if s["env_steps"] < wanted and out != archived and os.path.isdir(os.path.join(out, "checkpoints")):
+                stored_every = artefacts.read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
+                wanted_every = requested_config(args, task, method).run.eval_every
+                if stored_every == wanted_every:
+                    state = "extend"  # a finished shorter run: continue it to the requested budget
         if state == "done":
             if s["env_steps"] == wanted:
                 note = ""
