@@ -868,7 +868,10 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
     return path
 
 
-def add_visitation_task_option(p: argparse.ArgumentParser) -> None:
+def add_figure_options(p: argparse.ArgumentParser) -> None:
+    """The state-visitation figure's options, shared by this module's CLI and experiments.reproduce."""
+    p.add_argument("--embedding", default="tsne", choices=("tsne", "pca"),
+                   help="2-D embedding of the state-visitation figure (pca is fast)")
     p.add_argument("--visitation-task", action="append", choices=TASKS, default=None,
                    help="build the state-visitation figure for this task only (repeatable; default: every task "
                         "whose Meta (independent) and DDPG baseline cells stored their visited states)")
@@ -880,8 +883,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--runs-dir", default="runs/reproduce", help="grid root: <runs-dir>/<preset>/<task>/<method>")
     p.add_argument("--results-dir", default="results", help="output folder (a non-paper preset goes to <dir>/<preset>)")
     p.add_argument("--preset", default="paper", choices=("paper", "modern"))
-    p.add_argument("--embedding", default="tsne", choices=("tsne", "pca"), help="state-visitation embedding")
-    add_visitation_task_option(p)
+    add_figure_options(p)
     return p
 
 

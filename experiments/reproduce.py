@@ -69,9 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--runs-dir", default="runs/reproduce", help="grid root (default runs/reproduce)")
     p.add_argument("--results-dir", default="results", help="artefact folder (default results)")
     p.add_argument("--artefacts-only", action="store_true", help="train nothing; rebuild the artefacts only")
-    p.add_argument("--embedding", default="tsne", choices=("tsne", "pca"),
-                   help="2-D embedding of the state-visitation figure (pca is fast)")
-    artefacts.add_visitation_task_option(p)
+    artefacts.add_figure_options(p)
     p.add_argument("--no-plot", action="store_true", help="skip each run's own PNGs (the artefacts are still drawn)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.add_argument("--dry-run", action="store_true", help="print what would be run, skipped or resumed; do nothing")
