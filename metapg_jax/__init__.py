@@ -1,5 +1,26 @@
 """metapg-jax: Learning to Explore with Meta-Policy Gradient (Xu et al., ICML 2018) in JAX."""
 
-from metapg_jax.policy import load_policy
+import os as _os
+
+
+def _default_to_deterministic_gpu_ops() -> None:
+    """Add --xla_gpu_deterministic_ops=true to XLA_FLAGS unless XLA_FLAGS already sets that flag.
+
+    A resumed run must equal the uninterrupted one bit for bit (README "Long runs"). On a GPU, XLA's
+    default flags let two processes round the same program differently (measured on an H200: a run
+    killed and resumed in a new process differed from the uninterrupted run in the 6th digit of its
+    first evaluation; with this flag the two were equal; benchmarks_gpu/README.md). XLA reads XLA_FLAGS
+    when the first computation runs, so this must happen before that: importing metapg_jax first
+    suffices. CPU-only jaxlib accepts and ignores the flag. Opt out with
+    XLA_FLAGS=--xla_gpu_deterministic_ops=false.
+    """
+    flags = _os.environ.get("XLA_FLAGS", "")
+    if "xla_gpu_deterministic_ops" not in flags:
+        _os.environ["XLA_FLAGS"] = f"{flags} --xla_gpu_deterministic_ops=true".strip()
+
+
+_default_to_deterministic_gpu_ops()
+
+from metapg_jax.policy import load_policy  # noqa: E402
 
 __all__ = ["load_policy"]

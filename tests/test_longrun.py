@@ -43,7 +43,9 @@ def _assert_same_run(a, b):
 
 
 def _subprocess(args, **kw):
-    env = {**os.environ, "JAX_PLATFORMS": "cpu", **kw.pop("env", {})}
+    # The child inherits JAX_PLATFORMS (conftest.py defaults it to cpu): a killed run resumed on another
+    # backend than the in-process reference run's would differ from it in round-off.
+    env = {**os.environ, **kw.pop("env", {})}
     return subprocess.Popen([sys.executable, "-m", "experiments.run", *args], cwd=ROOT, env=env,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
@@ -148,6 +150,21 @@ def test_sigkill_then_resume_gives_the_same_result(tmp_path):
     assert run.main(TINY + steps + ["--out", full]) == 0
     _assert_same_run(full, out)
 
+
+
+@pytest.mark.parametrize("given, expected", [
+    ("", "--xla_gpu_deterministic_ops=true"),
+    ("--xla_cpu_enable_fast_math=false", "--xla_cpu_enable_fast_math=false --xla_gpu_deterministic_ops=true"),
+    ("--xla_gpu_deterministic_ops=false", "--xla_gpu_deterministic_ops=false"),  # the user's choice stands
+])
+def test_importing_the_package_asks_xla_for_deterministic_gpu_ops(given, expected):
+    # Without the flag two GPU processes may round the same program differently, and a resumed run would
+    # not equal the uninterrupted one (metapg_jax/__init__.py).
+    env = {**os.environ, "XLA_FLAGS": given}
+    out = subprocess.run([sys.executable, "-c", "import os, metapg_jax; print(os.environ['XLA_FLAGS'])"],
+                         cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == expected
 
 def test_corrupted_latest_checkpoint_falls_back_to_the_previous(reference, tmp_path):
     import shutil
