@@ -60,13 +60,13 @@ def setup():
     return ddpg, student
 
 
-
 @pytest.fixture(autouse=True)
 def _numpy_precision_matmuls():
     """The hand computations are float32 NumPy; a GPU's default matmul precision (TF32 class) is ~4e-4
     relative away from them (measured on an H200; README "Backend"). A no-op on CPU."""
     with jax.default_matmul_precision("highest"):
         yield
+
 
 def test_critic_loss_matches_hand_computation(setup):
     ddpg, student = setup

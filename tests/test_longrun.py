@@ -151,7 +151,6 @@ def test_sigkill_then_resume_gives_the_same_result(tmp_path):
     _assert_same_run(full, out)
 
 
-
 @pytest.mark.parametrize("given, expected", [
     ("", "--xla_gpu_deterministic_ops=true"),
     ("--xla_cpu_enable_fast_math=false", "--xla_cpu_enable_fast_math=false --xla_gpu_deterministic_ops=true"),
@@ -165,6 +164,7 @@ def test_importing_the_package_asks_xla_for_deterministic_gpu_ops(given, expecte
                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip() == expected
+
 
 def test_corrupted_latest_checkpoint_falls_back_to_the_previous(reference, tmp_path):
     import shutil
