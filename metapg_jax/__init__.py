@@ -8,8 +8,8 @@ def _default_to_deterministic_gpu_ops() -> None:
 
     A resumed run must equal the uninterrupted one bit for bit (README "Long runs"). On a GPU, XLA's
     default flags let two processes round the same program differently (measured on an H200: a run
-    killed and resumed in a new process differed from the uninterrupted run in the 6th digit of its
-    first evaluation; with this flag the two were equal; benchmarks_gpu/README.md). XLA reads XLA_FLAGS
+    killed and resumed in a new process differed from the uninterrupted run from its first metrics
+    row on; with this flag the two were equal; benchmarks_gpu/README.md). XLA reads XLA_FLAGS
     when the first computation runs, so this must happen before that: importing metapg_jax first
     suffices. CPU-only jaxlib accepts and ignores the flag. Opt out with
     XLA_FLAGS=--xla_gpu_deterministic_ops=false.
