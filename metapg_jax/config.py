@@ -12,8 +12,15 @@ Presets:
   tau 0.01, critic L2 1e-2, cycles of 100 rollout steps and 50 updates,
   adaptive parameter noise 0.2) and the paper's meta schedule per task.
 * ``modern``: a 2020s DDPG (256-256 without LayerNorm, action at the critic's
-  input, Adam 3e-4 both, batch 256, tau 0.005, no critic L2, one update per
-  env step, Gaussian noise 0.1, 5000 uniformly random warm-up steps).
+  input, Adam 3e-4 both, batch 256, tau 0.005, no critic L2, no observation
+  normalisation, one update per env step, Gaussian noise 0.1, 5000 uniformly
+  random warm-up steps). Meta under it: the paper's schedule per task with a
+  256-256 teacher without LayerNorm, one student update per stored step and
+  one look-ahead update per D0 step, no warm-up.
+
+Deviations from the paper that live here (README "Deviations from the paper"):
+DDPG's 100 rollout steps per cycle (the paper's Table 1: 200), the variance
+teacher's state-dependent log-std by default, the look-ahead's update count.
 """
 
 from __future__ import annotations
@@ -75,7 +82,9 @@ class MetaConfig:
     teacher: str = "independent"    # 'independent' (own mean + log-std MLPs) or 'variance' (student mean)
     hidden: tuple[int, ...] = (64, 64)
     layer_norm: bool = True         # the paper uses LayerNorm in its policy networks
-    state_dependent_std: bool = True  # variance teacher: log-std MLP (True) or a learned vector (False)
+    # Variance teacher: log-std MLP (True, our default, like the log-std network of the paper's
+    # section 5.1) or one learned vector (False, the paper's design (i), sigma^2 I).
+    state_dependent_std: bool = True
     init_log_std: float = -0.5      # initial log-std of the teacher (ours; the paper does not say)
     min_log_std: float = -5.0       # log-std bounds (ours)
     max_log_std: float = 1.0
@@ -83,7 +92,9 @@ class MetaConfig:
     explore_steps: int = 100        # |D0| per cycle
     eval_steps: int = 200           # |D1| per cycle, per eval env
     teacher_steps: int = 1          # REINFORCE Adam steps per cycle
-    lookahead_steps: int = 0        # DDPG updates of the look-ahead copy on D0; 0 = run.train_steps
+    # DDPG updates of the look-ahead copy on D0; 0 = run.train_steps (50; 500 on IP/HalfCheetah).
+    # The paper says "one or a small number of steps" without a number; ours is a reading.
+    lookahead_steps: int = 0
     eval_envs: int = 1              # parallel envs for D1
     student_from: str = "pi"        # student update starts from pi (paper) or pi'
     baseline: str = "lookahead"     # R_hat(pi) for the next cycle: R_hat(pi') or a fresh rollout
@@ -95,7 +106,7 @@ class MetaConfig:
 class RunConfig:
     method: str = "ddpg"           # 'ddpg' (baseline) or 'meta' (Algorithm 1)
     total_steps: int = 0           # stored env steps per seed (D0, D1, ...; evaluations excluded)
-    rollout_steps: int = 100       # DDPG: noisy-actor env steps per cycle
+    rollout_steps: int = 100       # DDPG: noisy-actor env steps per cycle (baselines; paper's Table 1: 200)
     train_steps: int = 50          # DDPG updates per cycle (student; and the look-ahead for meta)
     eval_every: int = 9000         # env steps between evaluations (= one compiled chunk)
     eval_episodes: int = 10        # deterministic evaluation episodes, in parallel

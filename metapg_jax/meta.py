@@ -27,6 +27,14 @@ Deviations from the paper's Algorithm 1 (also in the README):
 * With ``baseline='lookahead'`` R_hat(pi) is the previous cycle's R_hat(pi'),
   not a new estimate of the updated student (the paper says "compute the new
   R_hat(pi)" without saying how; a fresh estimate costs samples).
+
+Our readings where the paper gives no number or procedure (also in the README):
+* The look-ahead runs ``train_steps`` updates (50; 500 on IP/HalfCheetah), the
+  paper's "one or a small number of steps" read as the student's own count.
+* R_hat(pi') is one first-episode return per eval env, truncated at
+  ``eval_steps``: on the 1000-step tasks a 200-step partial return (2000 steps
+  on IP/HalfCheetah, i.e. whole episodes).
+* The teacher's env is not reset between cycles: D0 continues its episodes.
 """
 
 from __future__ import annotations
