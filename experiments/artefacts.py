@@ -20,6 +20,9 @@ from that archive, and writes, under the results folder:
   method's seed-mean evaluation return reaches the best seed-mean value of the
   DDPG (parameter noise) baseline, and the ratio to DDPG's own step (the
   paper's "about 1/6 of the samples" claim);
+* ``comparisons.md`` / ``.json``: every method against every other per task (medians, ranges, best
+  seed means, differences, Welch p, at how many evaluations one seed-mean curve is above the other):
+  the numbers the README's prose quotes beyond Table 2;
 * ``teacher_designs_idp.png``: independent vs variance teacher vs DDPG on
   InvertedDoublePendulum (Figure 2);
 * ``visitation_<task>.png``: states visited by the teacher, the student and
@@ -635,6 +638,81 @@ def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset
     return paths
 
 
+# ---------------------------------------------------------------------------------------------- comparisons
+
+def comparison_rows(results: dict, tasks: Sequence[str], methods: Sequence[str]) -> dict:
+    """Every method against every other, per task: the numbers the README's prose quotes.
+
+    ``{"methods": [...], "pairs": [...]}``. Per finished cell: median, min and max of the seeds' final
+    returns, the best value of the seed-mean curve and its step, the mean of the seed-mean curve over all
+    evaluations. Per pair (a, b) of finished cells with the same budget (in ``methods`` order): the
+    difference of mean finals a − b, Welch's t and p, and at how many of their common evaluation steps the
+    seed-mean curve of a is above b's."""
+    per_method, pairs = [], []
+    for task in tasks:
+        done = [m for m in methods if (task, m) in results and results[(task, m)].complete]
+        for m in done:
+            r = results[(task, m)]
+            final, curve = r.final(), np.nanmean(r.values, 0)
+            best = int(np.nanargmax(curve))
+            per_method.append({"task": task, "method": m, "n": int(final.size), "budget": r.budget,
+                               "mean": float(final.mean()), "median": float(np.median(final)),
+                               "min": float(final.min()), "max": float(final.max()),
+                               "best_seed_mean": float(curve[best]), "best_seed_mean_step": int(r.steps[best]),
+                               "mean_over_evaluations": float(np.nanmean(curve)), "evaluations": int(r.steps.size)})
+        for i, a in enumerate(done):
+            for b in done[i + 1:]:
+                ra, rb = results[(task, a)], results[(task, b)]
+                if ra.budget != rb.budget:
+                    continue  # mid-extension: never compared across budgets (as table2_rows)
+                t, p = welch_test(ra.final(), rb.final())
+                common, ia, ib = np.intersect1d(ra.steps, rb.steps, return_indices=True)
+                ca, cb = np.nanmean(ra.values, 0)[ia], np.nanmean(rb.values, 0)[ib]
+                pairs.append({"task": task, "a": a, "b": b, "budget": ra.budget,
+                              "difference": float(ra.final().mean() - rb.final().mean()), "t": t, "p": p,
+                              "a_above_b": int((ca > cb).sum()), "common_evaluations": int(common.size)})
+    return {"methods": per_method, "pairs": pairs}
+
+
+def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
+                      build_commit: str | None = None) -> list[str]:
+    """comparisons.md and comparisons.json from ``comparison_rows``; returns the paths."""
+    paths = [os.path.join(out_dir, "comparisons.md"), os.path.join(out_dir, "comparisons.json")]
+    name = lambda m: METHOD_NAMES.get(m, m)
+    md = [f"# Every method against every other ({preset} preset)", "",
+          "The numbers the README's prose quotes beyond `table2.md`, all from the same stored cells (finished "
+          "cells only; pairs only between cells of the same budget).", "",
+          f"- {FINAL_DEFINITION}.",
+          "- best seed mean: the highest value of the seed-mean evaluation curve, and the env step of that "
+          "evaluation; mean over evaluations: the seed-mean curve averaged over all its evaluations.",
+          "- a − b: difference of the mean final returns; p: two-sided Welch t-test of the seeds' final returns; "
+          "a above b: at how many of the evaluation steps both cells have the seed-mean curve of a is strictly "
+          "above b's."]
+    for task in dict.fromkeys(r["task"] for r in comparisons["methods"]):
+        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
+               "| method | seeds | budget | mean final | median | min | max | best seed mean (step) | "
+               "mean over evaluations |", "|---|---|---|---|---|---|---|---|---|"]
+        for r in (r for r in comparisons["methods"] if r["task"] == task):
+            md.append(f"| {name(r['method'])} | {r['n']} | {r['budget']:,} | {fmt(r['mean'])} | {fmt(r['median'])} "
+                      f"| {fmt(r['min'])} | {fmt(r['max'])} | {fmt(r['best_seed_mean'])} "
+                      f"({r['best_seed_mean_step']:,}) | {fmt(r['mean_over_evaluations'])} |")
+        pairs = [p for p in comparisons["pairs"] if p["task"] == task]
+        if pairs:
+            md += ["", "| a | b | a − b | Welch t | p | a above b |", "|---|---|---|---|---|---|"]
+            for p in pairs:
+                md.append(f"| {name(p['a'])} | {name(p['b'])} | {fmt(p['difference'])} | {fmt(p['t'], 2)} | "
+                          f"{fmt_p(p['p'])} | {p['a_above_b']} of {p['common_evaluations']} |")
+    if not comparisons["methods"]:
+        md += ["", "(no finished cell is stored)"]
+    md.append(footer)
+    with open(paths[0], "w") as f:
+        f.write("\n".join(md))
+    with open(paths[1], "w") as f:
+        json.dump({"preset": preset, "final_definition": FINAL_DEFINITION, "build_commit": build_commit,
+                   **comparisons}, f, indent=2, default=_json_default)
+    return paths
+
+
 # ---------------------------------------------------------------------------------------------- visitation
 
 def visitation_groups(teacher_visits: dict, ddpg_visits: dict) -> dict:
@@ -794,6 +872,7 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
     files += write_curves(results, tasks, methods, out_dir, build, preset)
     files += write_steps_to_threshold(steps_to_threshold_rows(results, tasks, methods, baseline), out_dir, footer, preset,
                                       build["commit"])
+    files += write_comparisons(comparison_rows(results, tasks, methods), out_dir, footer, preset, build["commit"])
     files += write_teacher_designs(results, out_dir, build, preset)
     for stale in glob.glob(os.path.join(out_dir, "visitation_*.png")):  # only what this build draws stays
         os.remove(stale)
@@ -832,6 +911,9 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
         "steps_to_threshold.md": "first env step at which each method's seed-mean curve reaches DDPG's best "
                                  "(and the ratio to DDPG's step)",
         "steps_to_threshold.csv": "steps-to-threshold as CSV (threshold, step, DDPG step, ratio per task and method)",
+        "comparisons.md": "every method against every other per task: medians, ranges, best seed means, "
+                          "differences, Welch p, at how many evaluations one seed-mean curve is above the other",
+        "comparisons.json": "the same, machine-readable",
         "teacher_designs_idp.png": "Figure 2: independent vs variance teacher vs DDPG on InvertedDoublePendulum",
         "manifest.json": "provenance: commit, machine, and per cell config, seeds, budget, wall time",
     }

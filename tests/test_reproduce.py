@@ -157,10 +157,44 @@ def test_steps_to_threshold(fabricated):
     assert "Samples to reach" in (fabricated["results"] / "steps_to_threshold.md").read_text()
 
 
+def test_comparisons_match_hand_computation(fabricated):
+    steps, data = fabricated["steps"], fabricated["data"]
+    comp = json.loads((fabricated["results"] / "comparisons.json").read_text())
+    cells = {r["method"]: r for r in comp["methods"] if r["task"] == "inverted_double_pendulum"}
+    assert set(cells) == set(data)  # finished cells only: the incomplete pendulum cell is left out
+    assert {r["task"] for r in comp["methods"]} == {"inverted_double_pendulum"}
+    for method, values in data.items():
+        final, curve = values[:, -2:].mean(1), values.mean(0)
+        c = cells[method]
+        assert c["median"] == pytest.approx(np.median(final)) and c["n"] == len(final)
+        assert (c["min"], c["max"]) == (pytest.approx(final.min()), pytest.approx(final.max()))
+        assert c["best_seed_mean"] == pytest.approx(curve.max())
+        assert c["best_seed_mean_step"] == int(steps[curve.argmax()])
+        assert c["mean_over_evaluations"] == pytest.approx(curve.mean())
+    pairs = {(p["a"], p["b"]): p for p in comp["pairs"]}
+    # every pair once, in the grid's method order
+    assert set(pairs) == {("meta-independent", "meta-variance"), ("meta-independent", "ddpg-paramnoise"),
+                          ("meta-variance", "ddpg-paramnoise")}
+    for (a, b), p in pairs.items():
+        fa, fb = data[a][:, -2:].mean(1), data[b][:, -2:].mean(1)
+        va, vb = fa.var(ddof=1) / len(fa), fb.var(ddof=1) / len(fb)
+        t = (fa.mean() - fb.mean()) / math.sqrt(va + vb)
+        df = (va + vb) ** 2 / (va ** 2 / (len(fa) - 1) + vb ** 2 / (len(fb) - 1))
+        assert p["difference"] == pytest.approx(fa.mean() - fb.mean())
+        assert p["t"] == pytest.approx(t) and p["p"] == pytest.approx(2 * stats.t.sf(abs(t), df))
+        above = sum(x > y for x, y in zip(data[a].mean(0), data[b].mean(0)))
+        assert (p["a_above_b"], p["common_evaluations"]) == (above, 20)
+    assert 0 < pairs[("meta-independent", "ddpg-paramnoise")]["a_above_b"] < 20  # the fixture's curves cross
+    md = (fabricated["results"] / "comparisons.md").read_text()
+    p = pairs[("meta-independent", "ddpg-paramnoise")]
+    assert f"| Meta (independent) | DDPG (param noise) | {artefacts.fmt(p['difference'])} |" in md
+    assert f"| {p['a_above_b']} of 20 |" in md and "## InvertedDoublePendulum" in md
+
+
 def test_figures_readme_and_manifest(fabricated):
     res = fabricated["results"]
     for name in ("curves_inverted_double_pendulum.png", "curves_pendulum.png", "teacher_designs_idp.png",
-                 "visitation_inverted_double_pendulum.png", "README.md", "manifest.json"):
+                 "comparisons.md", "visitation_inverted_double_pendulum.png", "README.md", "manifest.json"):
         assert (res / name).exists() and (res / name).stat().st_size > 0, name
     assert (res / "visitation_inverted_double_pendulum.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     manifest = json.loads((res / "manifest.json").read_text())
