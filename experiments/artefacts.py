@@ -647,7 +647,7 @@ def comparison_rows(results: dict, tasks: Sequence[str], methods: Sequence[str])
     returns, the best value of the seed-mean curve and its step, the mean of the seed-mean curve over all
     evaluations. Per pair (a, b) of finished cells with the same budget (in ``methods`` order): the
     difference of mean finals a − b, Welch's t and p, and at how many of their common evaluation steps the
-    seed-mean curve of a is above b's."""
+    seed-mean curve of a is above b's, and b's above a's."""
     per_method, pairs = [], []
     for task in tasks:
         done = [m for m in methods if (task, m) in results and results[(task, m)].complete]
@@ -670,7 +670,8 @@ def comparison_rows(results: dict, tasks: Sequence[str], methods: Sequence[str])
                 ca, cb = np.nanmean(ra.values, 0)[ia], np.nanmean(rb.values, 0)[ib]
                 pairs.append({"task": task, "a": a, "b": b, "budget": ra.budget,
                               "difference": float(ra.final().mean() - rb.final().mean()), "t": t, "p": p,
-                              "a_above_b": int((ca > cb).sum()), "common_evaluations": int(common.size)})
+                              "a_above_b": int((ca > cb).sum()), "b_above_a": int((cb > ca).sum()),
+                              "common_evaluations": int(common.size)})
     return {"methods": per_method, "pairs": pairs}
 
 
@@ -686,8 +687,8 @@ def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
           "- best seed mean: the highest value of the seed-mean evaluation curve, and the env step of that "
           "evaluation; mean over evaluations: the seed-mean curve averaged over all its evaluations.",
           "- a − b: difference of the mean final returns; p: two-sided Welch t-test of the seeds' final returns; "
-          "a above b: at how many of the evaluation steps both cells have the seed-mean curve of a is strictly "
-          "above b's."]
+          "a above b (b above a): at how many of the evaluation steps both cells have the seed-mean curve of a "
+          "is strictly above b's (b's above a's)."]
     for task in dict.fromkeys(r["task"] for r in comparisons["methods"]):
         md += ["", f"## {TASK_NAMES.get(task, task)}", "",
                "| method | seeds | budget | mean final | median | min | max | best seed mean (step) | "
@@ -698,10 +699,11 @@ def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
                       f"({r['best_seed_mean_step']:,}) | {fmt(r['mean_over_evaluations'])} |")
         pairs = [p for p in comparisons["pairs"] if p["task"] == task]
         if pairs:
-            md += ["", "| a | b | a − b | Welch t | p | a above b |", "|---|---|---|---|---|---|"]
+            md += ["", "| a | b | a − b | Welch t | p | a above b | b above a |", "|---|---|---|---|---|---|---|"]
             for p in pairs:
                 md.append(f"| {name(p['a'])} | {name(p['b'])} | {fmt(p['difference'])} | {fmt(p['t'], 2)} | "
-                          f"{fmt_p(p['p'])} | {p['a_above_b']} of {p['common_evaluations']} |")
+                          f"{fmt_p(p['p'])} | {p['a_above_b']} of {p['common_evaluations']} | "
+                          f"{p['b_above_a']} of {p['common_evaluations']} |")
     if not comparisons["methods"]:
         md += ["", "(no finished cell is stored)"]
     md.append(footer)

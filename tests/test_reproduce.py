@@ -183,12 +183,13 @@ def test_comparisons_match_hand_computation(fabricated):
         assert p["difference"] == pytest.approx(fa.mean() - fb.mean())
         assert p["t"] == pytest.approx(t) and p["p"] == pytest.approx(2 * stats.t.sf(abs(t), df))
         above = sum(x > y for x, y in zip(data[a].mean(0), data[b].mean(0)))
-        assert (p["a_above_b"], p["common_evaluations"]) == (above, 20)
+        below = sum(x < y for x, y in zip(data[a].mean(0), data[b].mean(0)))
+        assert (p["a_above_b"], p["b_above_a"], p["common_evaluations"]) == (above, below, 20)
     assert 0 < pairs[("meta-independent", "ddpg-paramnoise")]["a_above_b"] < 20  # the fixture's curves cross
     md = (fabricated["results"] / "comparisons.md").read_text()
     p = pairs[("meta-independent", "ddpg-paramnoise")]
     assert f"| Meta (independent) | DDPG (param noise) | {artefacts.fmt(p['difference'])} |" in md
-    assert f"| {p['a_above_b']} of 20 |" in md and "## InvertedDoublePendulum" in md
+    assert f"| {p['a_above_b']} of 20 | {p['b_above_a']} of 20 |" in md and "## InvertedDoublePendulum" in md
 
 
 def test_figures_readme_and_manifest(fabricated):
