@@ -224,13 +224,19 @@ def main(argv: list[str] | None = None) -> int:
         if a.rebuild:
             with open(os.path.join(a.out, MANIFEST)) as f:
                 stored = json.load(f)
-            specs, upto = [(r["name"], r["path"]) for r in stored["runs"]], int(stored["upto"])
+            try:
+                specs, upto = [(r["name"], r["path"]) for r in stored["runs"]], int(stored["upto"])
+            except (KeyError, TypeError) as err:
+                raise ValueError(f"{os.path.join(a.out, MANIFEST)} is not an ablation manifest "
+                                 f"(missing {err})") from None
         else:
             specs, upto = parse_runs(a.run), a.upto
             if len(specs) < 2:
                 raise ValueError("give at least two --run NAME=PATH (the first is the control)")
             if upto is None or upto <= 0:
                 raise ValueError("--upto must be a positive number of env steps")
+        if os.path.exists(a.out) and not os.path.isdir(a.out):
+            raise ValueError(f"--out {a.out} is a file, not a folder")
         if a.archive:
             specs = [(n, archive(path, os.path.join(a.out, "cells", slug(n)))) for n, path in specs]
         runs = []

@@ -366,6 +366,20 @@ def main(argv: list[str] | None = None) -> int:
     if args.num_envs <= 0 or args.repeats <= 0:
         print("error: --num-envs and --repeats must be positive", file=sys.stderr)
         return 2
+    from metapg_jax.config import METHODS, PRESETS
+
+    for flag, given, valid in (("--methods", args.methods, METHODS), ("--presets", args.presets, PRESETS)):
+        bad = [x for x in given.split(",") if x not in valid]
+        if bad:
+            print(f"error: {flag}: unknown {', '.join(bad)}; valid: {', '.join(valid)}", file=sys.stderr)
+            return 2
+    seeds = args.seeds.split(",")
+    if not all(s.strip().isdigit() and int(s) > 0 for s in seeds):
+        print(f"error: --seeds must be comma-separated positive integers, got {args.seeds!r}", file=sys.stderr)
+        return 2
+    if args.target_steps is not None and args.target_steps <= 0:
+        print(f"error: --target-steps must be positive, got {args.target_steps}", file=sys.stderr)
+        return 2
     import jax
 
     from metapg_jax import reporting
@@ -389,11 +403,7 @@ def main(argv: list[str] | None = None) -> int:
               "stock_mjx": args.stock_mjx and e != "pendulum", "plain_vmap": args.plain_vmap}
              for e in tasks for m in args.methods.split(",") for pr in args.presets.split(",")
              for s in args.seeds.split(",")]
-    for s in specs:  # --repeats is checked above
-        if s["seeds"] <= 0:
-            print("error: --seeds must be positive", file=sys.stderr)
-            return 2
-    rows = []
+    rows, failed = [], []
     if args.append and os.path.exists(json_path):
         with open(json_path) as f:
             rows = json.load(f)["rows"]
@@ -405,6 +415,7 @@ def main(argv: list[str] | None = None) -> int:
         line = [ln for ln in res.stdout.splitlines() if ln.startswith("BENCH_RESULT ")]
         if res.returncode != 0 or not line:
             print(f"  failed: {res.stderr[-2000:]}", file=sys.stderr)
+            failed.append(label)
             continue
         r = json.loads(line[0][len("BENCH_RESULT "):])
         key = lambda x: (x["env"], x["method"], x["preset"], x["seeds"], _variant(x))
@@ -420,7 +431,11 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         if r["seeds"] == 8 and id(r) in scaling:
             print(f"{_row_md(r, None).split(' | ')[0][2:]} {r['method']} {r['preset']}: 8-seed scaling {scaling[id(r)]:.2f}x")
-    print(f"wrote {args.out} and {json_path}")
+    if len(failed) < len(specs):  # the files are written after each measured row
+        print(f"wrote {args.out} and {json_path}")
+    if failed:
+        print(f"error: {len(failed)} of {len(specs)} measurements failed: {'; '.join(failed)}", file=sys.stderr)
+        return 1
     return 0
 
 

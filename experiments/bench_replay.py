@@ -84,22 +84,27 @@ def bench(name, factory, seeds, capacity, cycles, repeats):
     return per_cycle_ms
 
 
-def main():
+def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seeds", type=int, default=8)
     p.add_argument("--capacity", type=int, default=100_000)
     p.add_argument("--cycles", type=int, default=200)
     p.add_argument("--repeats", type=int, default=5)
-    a = p.parse_args()
+    a = p.parse_args(argv)
+    if min(a.seeds, a.cycles, a.repeats) <= 0:
+        p.error("--seeds, --cycles and --repeats must be positive")
+    if a.capacity < 100:
+        p.error(f"--capacity must hold one cycle's 100 added transitions, got {a.capacity}")
     ours = bench("ring", make_ours, a.seeds, a.capacity, a.cycles, a.repeats)
     try:
         import flashbax  # noqa: F401
     except ImportError:
         print("flashbax not installed: only the ring buffer was timed")
-        return
+        return 0
     fbx_ms = bench("flashbax", make_flashbax, a.seeds, a.capacity, a.cycles, a.repeats)
     print(f"flashbax / ring time ratio: {fbx_ms / ours:.2f}")
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

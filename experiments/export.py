@@ -33,10 +33,16 @@ def main(argv: list[str] | None = None) -> int:
     import jax
 
     from metapg_jax import config as config_lib
-    from metapg_jax.checkpoint import Checkpointer
+    from metapg_jax.checkpoint import Checkpointer, saved_steps
     from metapg_jax.policy import export_policies
     from metapg_jax.train import checkpoint_shapes, make_train, seed_keys
 
+    steps = saved_steps(os.path.join(args.run_dir, "checkpoints"))
+    if not steps or (args.chunk is not None and args.chunk not in steps):
+        have = ", ".join(map(str, steps)) or "none"
+        print(f"error: {args.run_dir}: no checkpoint" + (f" after {args.chunk} chunks" if steps else "") +
+              f" (checkpoints there, by chunks done: {have})", file=sys.stderr)
+        return 2
     with open(path) as f:
         stored = json.load(f)
     cfg = config_lib.from_dict(stored["config"])

@@ -95,8 +95,9 @@ def cell_state(path: str) -> str:
     or 'new'."""
     if os.path.exists(os.path.join(path, "summary.json")):
         return "done"
-    ckpt = os.path.join(path, "checkpoints")
-    if os.path.isdir(ckpt) and any(name.isdigit() for name in os.listdir(ckpt)):
+    from metapg_jax.checkpoint import saved_steps
+
+    if saved_steps(os.path.join(path, "checkpoints")):
         return "resume"
     if os.path.isdir(path) and os.listdir(path):
         return "restart"
@@ -247,6 +248,15 @@ def main(argv: list[str] | None = None) -> int:
         for item in args.overrides:
             if "=" not in item:
                 raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
+        if not args.artefacts_only:
+            # Every cell's config before the first one trains: a budget that one method's cycle does not
+            # divide, or a bad --set, stops the grid here rather than after the cells before it have run.
+            for task in tasks:
+                for method in methods:
+                    try:
+                        requested_config(args, task, method)
+                    except ValueError as err:
+                        raise ValueError(f"{task}/{method}: {err}") from None
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -118,8 +118,12 @@ def config_from_run_args(a: dict) -> config_lib.Config:
         raise ValueError(f"--seeds must be positive, got {a['seeds']}")
     if a["steps"] is not None and a["steps"] <= 0:
         raise ValueError(f"--steps must be positive, got {a['steps']}")
+    if not 0 <= a["seed"] < 2 ** 32:
+        raise ValueError(f"--seed must be in [0, 2**32), got {a['seed']}")
     if a["method"] == "ddpg" and a["teacher"] is not None:
         raise ValueError("--teacher applies to --method=meta only")
+    if a["method"] == "meta" and a["noise"] is not None:
+        raise ValueError("--noise applies to --method=ddpg only (meta explores with its teacher)")
     cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], noise=a["noise"],
                                  steps=a["steps"], source=a["source"], teacher=a["teacher"],
                                  overrides=parse_overrides(a["overrides"]))
@@ -184,12 +188,16 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
                 "the options given change the stored run"
             hint = " (pass the stored value with --set)" if extend_from else ""
             raise ValueError(f"--resume {out}: {what}: {'; '.join(differences)}{hint}")
-        if not os.path.isdir(os.path.join(out, "checkpoints")):
-            raise ValueError(f"--resume {out}: no checkpoints/ folder; nothing to resume from")
+        from metapg_jax.checkpoint import saved_steps
+
+        if not saved_steps(os.path.join(out, "checkpoints")):
+            raise ValueError(f"--resume {out}: no checkpoint under {out}/checkpoints; nothing to resume from")
     else:
         a = run_args(args)
         cfg = config_from_run_args(a)
         out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}-{cfg.preset}-s{a['seed']}")
+        if os.path.exists(out) and not os.path.isdir(out):
+            raise ValueError(f"--out {out} is a file, not a folder")
         if os.path.exists(out) and os.listdir(out) and not args.overwrite:
             raise ValueError(f"output folder {out} exists; pass --resume {out} to continue it, "
                              f"--overwrite to replace it, or --out elsewhere")

@@ -28,6 +28,14 @@ import numpy as np
 import orbax.checkpoint as ocp
 
 
+def saved_steps(directory: str) -> list[int]:
+    """Chunk counts of the checkpoint folders under ``directory`` (orbax names them by step), sorted;
+    [] when there is none or no such folder. Creates nothing (``Checkpointer`` creates the folder)."""
+    if not os.path.isdir(directory):
+        return []
+    return sorted(int(name) for name in os.listdir(directory) if name.isdigit())
+
+
 class Checkpointer:
     def __init__(self, directory: str, keep: int = 2):
         self.directory = os.path.abspath(directory)

@@ -104,6 +104,18 @@ def test_bad_input_gets_a_clear_error(runs, capsys, args, message):
     assert not os.path.exists(root / "r")
 
 
+def test_bad_output_folder_or_manifest_gets_a_clear_error(runs, capsys):
+    root, _, _ = runs
+    (root / "a_file").write_text("x")
+    assert ablation.main(["--out", str(root / "a_file"), "--upto", "12000", "--run", f"a={root / 'control'}",
+                          "--run", f"b={root / 'variant'}"]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
+    (root / "not_ablation").mkdir()
+    (root / "not_ablation" / ablation.MANIFEST).write_text(json.dumps({"task": "pendulum"}))
+    assert ablation.main(["--out", str(root / "not_ablation"), "--rebuild"]) == 2
+    assert "is not an ablation manifest (missing 'runs')" in capsys.readouterr().err
+
+
 def test_run_specs_and_seed_mismatch(runs, capsys):
     root, _, _ = runs
     with pytest.raises(ValueError, match="expected NAME=PATH"):

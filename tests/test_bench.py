@@ -1,5 +1,7 @@
 """experiments.bench's report writing (the measurements themselves are not unit-tested: timings)."""
 
+import pytest
+
 from experiments import bench
 
 
@@ -48,4 +50,21 @@ def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
     assert "unknown task(s) cartpole" in capsys.readouterr().err
     assert bench.main(["--env-speed", "--envs", "pendulum", "--num-envs", "0", "--out", out]) == 2
     assert "--num-envs and --repeats must be positive" in capsys.readouterr().err
-    assert not (tmp_path / "B.md").exists()
+    for argv, message in ((["--methods", "ddpg,sac"], "--methods: unknown sac"),
+                          (["--presets", "fast"], "--presets: unknown fast"),
+                          (["--seeds", "1,x"], "--seeds must be comma-separated positive integers"),
+                          (["--seeds", "0"], "--seeds must be comma-separated positive integers"),
+                          (["--target-steps", "0"], "--target-steps must be positive")):
+        assert bench.main([*argv, "--out", out, "--json", str(tmp_path / "b.json")]) == 2, argv
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "B.md").exists() and not (tmp_path / "b.json").exists()
+
+
+def test_replay_benchmark_refuses_sizes_it_cannot_time(capsys):
+    from experiments import bench_replay
+
+    for argv in (["--capacity", "50"], ["--cycles", "0"], ["--repeats", "0"], ["--seeds", "0"]):
+        with pytest.raises(SystemExit) as exc:
+            bench_replay.main(argv)
+        assert exc.value.code == 2, argv
+    assert "--capacity must hold one cycle's 100 added transitions" in capsys.readouterr().err

@@ -2,6 +2,7 @@
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 
@@ -30,6 +31,18 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     (["--set", "ddpg.batch_size=abc"], "expected int"),
     (["--set", "novalue"], "--set expects GROUP.FIELD=VALUE"),
     (["--method=ddpg", "--teacher=variance"], "--teacher applies to --method=meta only"),
+    (["--noise=ou"], "--noise applies to --method=ddpg only"),
+    (["--seed=-1"], "--seed must be in [0, 2**32)"),
+    ([f"--seed={2 ** 63}"], "--seed must be in [0, 2**32)"),
+    (["--set", "preset=modern"], "preset cannot be overridden; use --preset"),
+    (["--set", "env.name=hopper"], "env.name cannot be overridden; use --env"),
+    (["--set", "run.method=ddpg"], "run.method cannot be overridden; use --method"),
+    (["--method=ddpg", "--preset=modern", "--steps=3000"], "run.warmup_steps=5000 is not below the budget"),
+    (["--method=ddpg", "--steps=1000", "--set", "ddpg.batch_size=2000"], "larger than the replay capacity 1000"),
+    (["--set", "noise.adapt_coef=0.5"], "noise.adapt_coef must be a finite number > 1"),
+    (["--set", "noise.ou_dt=-1"], "noise.ou_dt must be a positive finite number"),
+    (["--set", "noise.ou_theta=nan"], "noise.ou_theta must be a finite number >= 0"),
+    (["--set", "ddpg.final_init=nan"], "ddpg.final_init must be a positive finite number"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, message, capsys):
     assert run.main(argv) == 2
@@ -43,6 +56,26 @@ def test_existing_output_needs_overwrite(tmp_path, capsys):
     (out / "metrics.jsonl").write_text("{}\n")
     assert run.main(["--out", str(out)]) == 2
     assert "exists; pass --resume" in capsys.readouterr().err
+
+
+def test_output_that_is_a_file_is_refused(tmp_path, capsys):
+    path = tmp_path / "a_file"
+    path.write_text("x")
+    assert run.main(["--out", str(path)]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
+
+
+def test_resume_without_a_checkpoint_fails_before_touching_the_run(tmp_path, capsys):
+    """An empty checkpoints/ (a run killed before its first checkpoint) has nothing to resume: refused before
+    an extension rewrites config.json."""
+    out = str(tmp_path / "run")
+    _stored_run(out, ["--env=pendulum", "--method=meta", "--steps=3000", "--out", out])
+    shutil.rmtree(os.path.join(out, "checkpoints", "1"))
+    before = open(os.path.join(out, "config.json")).read()
+    for argv in (["--resume", out], ["--resume", out, "--steps=6000"]):
+        assert run.main(argv) == 2
+        assert "no checkpoint under" in capsys.readouterr().err
+    assert open(os.path.join(out, "config.json")).read() == before
 
 
 def test_help_documents_every_option():
@@ -82,11 +115,12 @@ def test_tiny_meta_run_end_to_end(tmp_path):
 
 
 def _stored_run(out, argv):
-    """A run folder as `experiments.run` leaves it before training (config.json, checkpoints/)."""
+    """A run folder as `prepare` sees one with a checkpoint: config.json and checkpoints/1 (an empty
+    stand-in for orbax's step folder; nothing here restores it)."""
     args = run.build_parser().parse_args(argv)
     a = run.run_args(args)
     cfg = run.config_from_run_args(a)
-    os.makedirs(os.path.join(out, "checkpoints"))
+    os.makedirs(os.path.join(out, "checkpoints", "1"))
     with open(os.path.join(out, "config.json"), "w") as f:
         json.dump({"run_args": a, "config": run.config_lib.to_dict(cfg)}, f)
     return cfg

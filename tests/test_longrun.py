@@ -229,6 +229,20 @@ def test_nan_guard_names_the_seed_and_stops(tmp_path, capsys):
     assert not os.path.exists(os.path.join(out, "summary.json"))
 
 
+def test_export_without_a_checkpoint_fails_clearly_and_creates_nothing(tmp_path, capsys):
+    from experiments import export
+    from tests.helpers import fabricate_run
+
+    run_dir = tmp_path / "run"
+    fabricate_run(run_dir, "pendulum", "ddpg-paramnoise", np.zeros((2, 3)), np.arange(1, 4) * 300)
+    assert export.main([str(run_dir)]) == 2
+    assert "no checkpoint (checkpoints there, by chunks done: none)" in capsys.readouterr().err
+    assert not (run_dir / "checkpoints").exists()
+    (run_dir / "checkpoints" / "3").mkdir(parents=True)
+    assert export.main([str(run_dir), "--chunk", "-1"]) == 2
+    assert "no checkpoint after -1 chunks (checkpoints there, by chunks done: 3)" in capsys.readouterr().err
+
+
 def test_exported_policy_reproduces_the_training_evaluation(reference):
     from metapg_jax import config as config_lib
     from metapg_jax.train import make_train, seed_keys

@@ -264,6 +264,18 @@ def test_reproduce_rejects_bad_input(capsys):
     assert reproduce.main(["--seeds", "0"]) == 2
 
 
+def test_reproduce_checks_every_cell_before_the_first_runs(tmp_path, capsys):
+    """1000 steps fit DDPG's 100-step cycle but not Meta's 300 on pendulum: refused before DDPG trains."""
+    runs = tmp_path / "runs"
+    base = ["--tasks", "pendulum", "--runs-dir", str(runs), "--results-dir", str(tmp_path / "results")]
+    assert reproduce.main([*base, "--methods", "ddpg-paramnoise,meta-independent", "--steps", "1000"]) == 2
+    err = capsys.readouterr().err
+    assert "pendulum/meta-independent:" in err and "not a multiple of the 300 env steps" in err
+    assert reproduce.main([*base, "--set", "ddpg.nope=1", "--dry-run"]) == 2
+    assert "unknown config field 'ddpg.nope'" in capsys.readouterr().err
+    assert not runs.exists()
+
+
 def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     runs, results = tmp_path / "runs", tmp_path / "results"
     argv = ["--tasks", "pendulum", "--methods", "meta-independent,ddpg-paramnoise", "--seeds", "2", "--steps", "600",
