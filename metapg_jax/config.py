@@ -39,7 +39,7 @@ TEACHERS = ("independent", "variance")
 STUDENT_FROM = ("pi", "lookahead")
 BASELINES = ("lookahead", "fresh")
 # Fields that make_config's own arguments set (with the task's protocol and budget): not overridable.
-IDENTITY_FIELDS = {"preset": "--preset", "env.name": "--env", "run.method": "--method"}
+IDENTITY_FIELDS = {"preset": "preset", "env.name": "task", "run.method": "method"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -188,7 +188,8 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
     named = [k for k in overrides if k in IDENTITY_FIELDS]
     if named:
         # These name the run (folder, label, the task's protocol and budget) and are read before overrides.
-        raise ValueError(f"{named[0]} cannot be overridden; use {IDENTITY_FIELDS[named[0]]} instead")
+        raise ValueError(f"{named[0]} cannot be overridden with --set; choose it with the command's "
+                         f"{IDENTITY_FIELDS[named[0]]} option")
     if overrides:
         cfg = override(cfg, overrides)
     if preset == "modern" and method == "meta":
@@ -304,9 +305,10 @@ def validate(cfg: Config) -> Config:
         _positive(f"run.{name}", getattr(cfg.run, name))
     if cfg.run.warmup_steps < 0 or cfg.run.buffer_size < 0 or cfg.meta.lookahead_steps < 0:
         raise ValueError("run.warmup_steps, run.buffer_size and meta.lookahead_steps must be >= 0")
-    if cfg.run.warmup_steps and cfg.run.warmup_steps >= cfg.run.total_steps:
+    if cfg.run.method == "ddpg" and cfg.run.warmup_steps and cfg.run.warmup_steps >= cfg.run.total_steps:
+        # (Meta's warm-up only holds back the student's own updates; the teacher explores from the start.)
         raise ValueError(f"run.warmup_steps={cfg.run.warmup_steps} is not below the budget of {cfg.run.total_steps} "
-                         f"env steps: the run would act at random and never update (lower it with "
+                         f"env steps: the DDPG run would act at random throughout (lower it with "
                          f"--set run.warmup_steps=N, or raise --steps)")
     for name in ("actor_lr", "critic_lr", "batch_size", "tau", "gamma", "obs_clip"):
         _positive(f"ddpg.{name}", getattr(cfg.ddpg, name))
@@ -321,13 +323,15 @@ def validate(cfg: Config) -> Config:
     if cfg.noise.kind != "none":
         _positive("noise.stddev", cfg.noise.stddev)
     _positive("noise.adapt_every", cfg.noise.adapt_every)
-    _positive("noise.ou_dt", cfg.noise.ou_dt)
-    _positive("ddpg.final_init", cfg.ddpg.final_init)
-    if not (math.isfinite(cfg.noise.ou_theta) and cfg.noise.ou_theta >= 0):
-        raise ValueError(f"noise.ou_theta must be a finite number >= 0, got {cfg.noise.ou_theta!r}")
-    if not (math.isfinite(cfg.noise.adapt_coef) and cfg.noise.adapt_coef > 1):
-        raise ValueError(f"noise.adapt_coef must be a finite number > 1 (the stddev is multiplied or divided by "
-                         f"it), got {cfg.noise.adapt_coef!r}")
+    if not (math.isfinite(cfg.ddpg.final_init) and cfg.ddpg.final_init >= 0):
+        raise ValueError(f"ddpg.final_init must be a finite number >= 0, got {cfg.ddpg.final_init!r}")
+    if cfg.noise.kind == "ou":
+        _positive("noise.ou_dt", cfg.noise.ou_dt)
+        if not (math.isfinite(cfg.noise.ou_theta) and cfg.noise.ou_theta >= 0):
+            raise ValueError(f"noise.ou_theta must be a finite number >= 0, got {cfg.noise.ou_theta!r}")
+    if cfg.noise.kind == "adaptive-param" and not (math.isfinite(cfg.noise.adapt_coef) and cfg.noise.adapt_coef >= 1):
+        raise ValueError(f"noise.adapt_coef must be a finite number >= 1 (the stddev is multiplied or divided by "
+                         f"it; 1 keeps it fixed), got {cfg.noise.adapt_coef!r}")
     _positive("meta.visit_samples", cfg.meta.visit_samples)
     if cfg.run.method == "meta":
         for name in ("lr", "explore_steps", "eval_steps", "teacher_steps", "eval_envs"):

@@ -34,15 +34,15 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     (["--noise=ou"], "--noise applies to --method=ddpg only"),
     (["--seed=-1"], "--seed must be in [0, 2**32)"),
     ([f"--seed={2 ** 63}"], "--seed must be in [0, 2**32)"),
-    (["--set", "preset=modern"], "preset cannot be overridden; use --preset"),
-    (["--set", "env.name=hopper"], "env.name cannot be overridden; use --env"),
-    (["--set", "run.method=ddpg"], "run.method cannot be overridden; use --method"),
+    (["--set", "preset=modern"], "preset cannot be overridden with --set; choose it with the command's preset"),
+    (["--set", "env.name=hopper"], "env.name cannot be overridden with --set; choose it with the command's task"),
+    (["--set", "run.method=ddpg"], "run.method cannot be overridden with --set"),
     (["--method=ddpg", "--preset=modern", "--steps=3000"], "run.warmup_steps=5000 is not below the budget"),
     (["--method=ddpg", "--steps=1000", "--set", "ddpg.batch_size=2000"], "larger than the replay capacity 1000"),
-    (["--set", "noise.adapt_coef=0.5"], "noise.adapt_coef must be a finite number > 1"),
-    (["--set", "noise.ou_dt=-1"], "noise.ou_dt must be a positive finite number"),
-    (["--set", "noise.ou_theta=nan"], "noise.ou_theta must be a finite number >= 0"),
-    (["--set", "ddpg.final_init=nan"], "ddpg.final_init must be a positive finite number"),
+    (["--method=ddpg", "--set", "noise.adapt_coef=0.5"], "noise.adapt_coef must be a finite number >= 1"),
+    (["--method=ddpg", "--noise=ou", "--set", "noise.ou_dt=-1"], "noise.ou_dt must be a positive finite number"),
+    (["--method=ddpg", "--noise=ou", "--set", "noise.ou_theta=nan"], "noise.ou_theta must be a finite number >= 0"),
+    (["--set", "ddpg.final_init=nan"], "ddpg.final_init must be a finite number >= 0"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, message, capsys):
     assert run.main(argv) == 2
