@@ -104,6 +104,17 @@ def cell_state(path: str) -> str:
     return "new"
 
 
+def finished_at_budget(args: argparse.Namespace, task: str, method: str) -> bool:
+    """Whether the cell's run folder or its archived copy finished at (at least) the requested budget."""
+    wanted = wanted_budget(args, task)
+    for path in (cell_dir(args.runs_dir, args.preset, task, method),
+                 os.path.join(artefacts.archive_dir_for(args.results_dir, args.preset), task, method)):
+        summary = artefacts.read_json(os.path.join(path, "summary.json"))
+        if summary and summary["env_steps"] >= wanted:
+            return True
+    return False
+
+
 def wanted_budget(args: argparse.Namespace, task: str) -> int:
     """The requested env steps per seed: ``--steps``, else the paper's budget for the task (as make_config)."""
     from envs import default_budget
@@ -253,6 +264,8 @@ def main(argv: list[str] | None = None) -> int:
             # divide, or a bad --set, stops the grid here rather than after the cells before it have run.
             for task in tasks:
                 for method in methods:
+                    if finished_at_budget(args, task, method):
+                        continue  # skipped by run_grid whatever its config would be at this budget
                     try:
                         requested_config(args, task, method)
                     except ValueError as err:

@@ -274,6 +274,15 @@ def test_reproduce_checks_every_cell_before_the_first_runs(tmp_path, capsys):
     assert reproduce.main([*base, "--set", "ddpg.nope=1", "--dry-run"]) == 2
     assert "unknown config field 'ddpg.nope'" in capsys.readouterr().err
     assert not runs.exists()
+    # A cell finished at (at least) the requested budget is skipped, so its config at that budget is not checked.
+    cell = runs / "paper" / "pendulum" / "meta-independent"
+    fabricate_run(cell, "pendulum", "meta-independent", np.zeros((2, 4)), np.arange(1, 5) * 300)
+    summary = json.loads((cell / "summary.json").read_text())
+    (cell / "summary.json").write_text(json.dumps({**summary, "final_eval_return_mean": 0.0,
+                                                   "final_eval_return_std": 0.0}))
+    assert reproduce.main([*base, "--methods", "ddpg-paramnoise,meta-independent", "--steps", "1000",
+                           "--dry-run"]) == 0
+    assert "grid: 1 skipped, 1 would new" in capsys.readouterr().out
 
 
 def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
