@@ -138,6 +138,8 @@ def test_no_welch_test_between_cells_of_different_budgets(tmp_path):
     row = artefacts.table2_rows(results, ["reacher"], list(artefacts.METHODS))[0]
     assert row["methods"]["meta-independent"]["budget"] == 20000 and row["methods"]["ddpg-paramnoise"]["budget"] == 10000
     assert row["welch"] is None and row["welch_skipped"] == "budgets differ"
+    comparisons = artefacts.comparison_rows(results, ["reacher"], list(artefacts.METHODS))
+    assert len(comparisons["methods"]) == 2 and comparisons["pairs"] == []  # no pair across budgets either
     artefacts.write_table2([row], list(artefacts.METHODS), str(tmp_path / "out"), "", "paper")
     md = (tmp_path / "out" / "table2.md").read_text()
     assert "| n/a (budgets differ) | n/a | n/a |" in md
