@@ -651,9 +651,10 @@ def comparison_rows(results: dict, tasks: Sequence[str], methods: Sequence[str])
     per_method, pairs = [], []
     for task in tasks:
         done = [m for m in methods if (task, m) in results and results[(task, m)].complete]
+        finals = {m: results[(task, m)].final() for m in done}
+        curves = {m: np.nanmean(results[(task, m)].values, 0) for m in done}  # seed-mean curves
         for m in done:
-            r = results[(task, m)]
-            final, curve = r.final(), np.nanmean(r.values, 0)
+            r, final, curve = results[(task, m)], finals[m], curves[m]
             best = int(np.nanargmax(curve))
             per_method.append({"task": task, "method": m, "n": int(final.size), "budget": r.budget,
                                "mean": float(final.mean()), "median": float(np.median(final)),
@@ -665,11 +666,11 @@ def comparison_rows(results: dict, tasks: Sequence[str], methods: Sequence[str])
                 ra, rb = results[(task, a)], results[(task, b)]
                 if ra.budget != rb.budget:
                     continue  # mid-extension: never compared across budgets (as table2_rows)
-                t, p = welch_test(ra.final(), rb.final())
+                t, p = welch_test(finals[a], finals[b])
                 common, ia, ib = np.intersect1d(ra.steps, rb.steps, return_indices=True)
-                ca, cb = np.nanmean(ra.values, 0)[ia], np.nanmean(rb.values, 0)[ib]
+                ca, cb = curves[a][ia], curves[b][ib]
                 pairs.append({"task": task, "a": a, "b": b, "budget": ra.budget,
-                              "difference": float(ra.final().mean() - rb.final().mean()), "t": t, "p": p,
+                              "difference": float(finals[a].mean() - finals[b].mean()), "t": t, "p": p,
                               "a_above_b": int((ca > cb).sum()), "b_above_a": int((cb > ca).sum()),
                               "common_evaluations": int(common.size)})
     return {"methods": per_method, "pairs": pairs}

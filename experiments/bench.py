@@ -366,13 +366,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.num_envs <= 0 or args.repeats <= 0:
         print("error: --num-envs and --repeats must be positive", file=sys.stderr)
         return 2
+    from experiments.reproduce import parse_list
     from metapg_jax.config import METHODS, PRESETS
 
-    for flag, given, valid in (("--methods", args.methods, METHODS), ("--presets", args.presets, PRESETS)):
-        bad = [x for x in given.split(",") if x not in valid]
-        if bad:
-            print(f"error: {flag}: unknown {', '.join(bad)}; valid: {', '.join(valid)}", file=sys.stderr)
-            return 2
+    try:
+        parse_list(args.methods, METHODS, "method")
+        parse_list(args.presets, PRESETS, "preset")
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     seeds = args.seeds.split(",")
     if not all(s.strip().isdigit() and int(s) > 0 for s in seeds):
         print(f"error: --seeds must be comma-separated positive integers, got {args.seeds!r}", file=sys.stderr)

@@ -50,8 +50,8 @@ def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
     assert "unknown task(s) cartpole" in capsys.readouterr().err
     assert bench.main(["--env-speed", "--envs", "pendulum", "--num-envs", "0", "--out", out]) == 2
     assert "--num-envs and --repeats must be positive" in capsys.readouterr().err
-    for argv, message in ((["--methods", "ddpg,sac"], "--methods: unknown sac"),
-                          (["--presets", "fast"], "--presets: unknown fast"),
+    for argv, message in ((["--methods", "ddpg,sac"], "unknown method 'sac'; valid: ddpg, meta"),
+                          (["--presets", "fast"], "unknown preset 'fast'; valid: paper, modern"),
                           (["--seeds", "1,x"], "--seeds must be comma-separated positive integers"),
                           (["--seeds", "0"], "--seeds must be comma-separated positive integers"),
                           (["--target-steps", "0"], "--target-steps must be positive")):
