@@ -43,10 +43,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {args.run_dir}: no checkpoint" + (f" after {args.chunk} chunks" if steps else "") +
               f" (checkpoints there, by chunks done: {have})", file=sys.stderr)
         return 2
-    with open(path) as f:
-        stored = json.load(f)
-    cfg = config_lib.from_dict(stored["config"])
-    a = stored["run_args"]
+    out = args.out or os.path.join(args.run_dir, "policy.npz" if args.chunk is None else f"policy_{args.chunk}.npz")
+    if os.path.isdir(out) or not os.path.isdir(os.path.dirname(os.path.abspath(out))):
+        print(f"error: --out {out}: " + ("is a folder; name a file" if os.path.isdir(out) else
+                                         "its folder does not exist"), file=sys.stderr)
+        return 2
+    try:  # a hand-edited or truncated config.json: one line, not a traceback from deep inside the build
+        with open(path) as f:
+            stored = json.load(f)
+        cfg = config_lib.validate(config_lib.from_dict(stored["config"]))
+        a = {"seed": int(stored["run_args"]["seed"]), "seeds": int(stored["run_args"]["seeds"])}
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        print(f"error: {path} is not a usable run config ({type(err).__name__}: {err})", file=sys.stderr)
+        return 2
     trainer = make_train(cfg)
     ckpt = Checkpointer(os.path.join(args.run_dir, "checkpoints"))
     try:
@@ -56,7 +65,6 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     finally:
         ckpt.close()
-    out = args.out or os.path.join(args.run_dir, "policy.npz" if args.chunk is None else f"policy_{args.chunk}.npz")
     export_policies(out, cfg, jax.device_get(state.student.actor), jax.device_get(state.normalizer))
     print(f"exported {a['seeds']} policies after {meta['chunks_done']} chunks "
           f"({meta['chunks_done'] * cfg.run.eval_every:,} env steps) to {out}")

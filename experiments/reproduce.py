@@ -193,7 +193,9 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
             with open(os.path.join(out, "summary.json")) as f:
                 s = json.load(f)
             stored_every = wanted_every = None
-            if s["env_steps"] < wanted and out != archived and os.path.isdir(os.path.join(out, "checkpoints")):
+            from metapg_jax.checkpoint import saved_steps
+
+            if s["env_steps"] < wanted and out != archived and saved_steps(os.path.join(out, "checkpoints")):
                 stored_every = artefacts.read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
                 wanted_every = requested_config(args, task, method).run.eval_every
                 if stored_every == wanted_every:
@@ -208,8 +210,9 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
                         f"interval {stored_every:,} is not the {wanted_every:,} of a run at that budget, so it is "
                         f"not extended; delete it to rerun)")
             elif s["env_steps"] < wanted:
-                note = (f" (stored budget {s['env_steps']:,} is below the requested {wanted:,}, and its run "
-                        f"folder with the checkpoints to extend is not here; delete it to rerun)")
+                # An archived copy (its run folder is not in this clone) or an empty checkpoints/.
+                note = (f" (stored budget {s['env_steps']:,} is below the requested {wanted:,}, and no checkpoint "
+                        f"to extend it from is stored; delete it to rerun)")
             else:
                 note = f" (stored budget {s['env_steps']:,} is above the requested {wanted:,}; delete it to rerun)"
             print(f"{tag}: done, skipped: final eval return {s['final_eval_return_mean']:.1f} ± "

@@ -241,6 +241,22 @@ def test_export_without_a_checkpoint_fails_clearly_and_creates_nothing(tmp_path,
     (run_dir / "checkpoints" / "3").mkdir(parents=True)
     assert export.main([str(run_dir), "--chunk", "-1"]) == 2
     assert "no checkpoint after -1 chunks (checkpoints there, by chunks done: 3)" in capsys.readouterr().err
+    # A bad --out or a config.json that no longer parses or validates: one line, before anything is built.
+    assert export.main([str(run_dir), "--out", str(tmp_path / "missing" / "p.npz")]) == 2
+    assert "its folder does not exist" in capsys.readouterr().err
+    assert export.main([str(run_dir), "--out", str(tmp_path)]) == 2
+    assert "is a folder; name a file" in capsys.readouterr().err
+    config_path = run_dir / "config.json"
+    stored = json.loads(config_path.read_text())
+    stored["config"]["ddpg"]["batch_size"] = 0
+    config_path.write_text(json.dumps(stored))
+    assert export.main([str(run_dir)]) == 2
+    err = capsys.readouterr().err
+    assert "config.json is not a usable run config (ValueError" in err and "batch_size" in err
+    config_path.write_text(json.dumps(stored)[:40])
+    assert export.main([str(run_dir)]) == 2
+    assert "is not a usable run config (JSONDecodeError" in capsys.readouterr().err
+    assert not list(tmp_path.rglob("*.npz"))
 
 
 def test_exported_policy_reproduces_the_training_evaluation(reference):

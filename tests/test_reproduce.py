@@ -367,6 +367,15 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     last = json.loads((cell / "reproduce.json").read_text())["calls"][-1]["argv"]
     assert "--steps=900" in last and last[-2:] == ["--resume", str(cell)]
     assert (cell / "summary_600.json").exists()
+    # A finished shorter cell whose checkpoints/ is empty has nothing to extend from: skipped with a note.
+    os.rename(cell / "checkpoints", cell / "checkpoints.moved")
+    (cell / "checkpoints").mkdir()
+    assert reproduce.main(argv + ["--methods", "ddpg-paramnoise", "--steps", "1200", "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    assert "is below the requested 1,200, and no checkpoint to extend it from is stored" in out
+    assert "grid: 1 skipped" in out
+    (cell / "checkpoints").rmdir()
+    os.rename(cell / "checkpoints.moved", cell / "checkpoints")
 
     # A fresh clone: no run folders, only the committed archive. Nothing is rerun and the table is the same.
     archived = results / "cells" / "pendulum" / "ddpg-paramnoise"
@@ -380,8 +389,8 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     assert out.count("done, skipped") == 2 and "grid: 2 skipped" in out and not runs.exists()
     assert "stored budget 900 is above the requested 600" in out
     assert reproduce.main(argv + ["--steps", "1200", "--dry-run"]) == 0
-    assert capsys.readouterr().out.count("is below the requested 1,200, and its run folder with the checkpoints "
-                                         "to extend is not here") == 2
+    assert capsys.readouterr().out.count("is below the requested 1,200, and no checkpoint to extend it from is "
+                                         "stored") == 2
     after = json.loads((results / "table2.json").read_text())["rows"]
     strip = lambda rows: [{m: {k: v for k, v in c.items() if k != "run_dir"} for m, c in r["methods"].items()}
                           for r in rows]
