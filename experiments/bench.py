@@ -7,7 +7,8 @@
 For every (task, method, preset, seeds) it runs a fresh subprocess (so peak
 memory and compile caches are its own) that measures, in one process:
 
-* compile time of the training program (``lower().compile()``), separately;
+* compile time of the training program (``lower().compile()``), separately, always a cold
+  compile (the persistent compile cache ``experiments.run`` uses is off here);
 * whole training (``cycles`` scanned cycles, vmapped over seeds; no evaluation):
   median over ``--repeats`` timed calls after one warm call -> env steps/s;
 * the two parts alone, with the same step and update counts and the same seed
@@ -323,6 +324,14 @@ def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
     write_section(path, "training", "\n".join(lines))
 
 
+def _cold_compiles() -> None:
+    """Compile times here are cold compiles: no persistent compile cache, whatever the environment
+    says (JAX_COMPILATION_CACHE_DIR); the ``--one`` subprocesses get JAX's off switch too."""
+    from metapg_jax import compile_cache
+
+    compile_cache.enable(None)
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -353,6 +362,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
     args = p.parse_args(argv)
     if args.one:
+        _cold_compiles()
         print("BENCH_RESULT " + json.dumps(measure_one(json.loads(args.one))), flush=True)
         return 0
     import envs
@@ -386,6 +396,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from metapg_jax import reporting
 
+    _cold_compiles()
     json_path = args.json or ("benchmarks_env_speed.json" if args.env_speed else "benchmarks.json")
     meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
@@ -413,6 +424,7 @@ def main(argv: list[str] | None = None) -> int:
         label = f"{spec['env']} {spec['method']} {spec['preset']} x{spec['seeds']}{_variant(spec)}"
         print(f"[{i + 1}/{len(specs)}] {label} ...", flush=True)
         res = subprocess.run([sys.executable, "-m", "experiments.bench", "--one", json.dumps(spec)],
+                             env={**os.environ, "JAX_ENABLE_COMPILATION_CACHE": "false"},
                              capture_output=True, text=True)
         line = [ln for ln in res.stdout.splitlines() if ln.startswith("BENCH_RESULT ")]
         if res.returncode != 0 or not line:

@@ -43,6 +43,7 @@ import sys
 import time
 
 import envs
+from metapg_jax import compile_cache
 from metapg_jax import config as config_lib
 
 TEACHER_CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_log_std",
@@ -85,6 +86,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "--checkpoint-minutes have passed, and at the end")
     p.add_argument("--checkpoint-minutes", type=float, default=5.0,
                    help="with --checkpoint-every=0: minimum minutes between checkpoints (default 5)")
+    p.add_argument("--compile-cache", default=None, metavar="DIR|off",
+                   help="keep compiled programs on disk for the next run or resume (default: "
+                        "$JAX_COMPILATION_CACHE_DIR, else ~/.cache/metapg-jax/xla; 'off' compiles afresh; "
+                        "see metapg_jax/compile_cache.py)")
     p.add_argument("--debug-nans", action="store_true", help="turn on jax_debug_nans (slow; for hunting NaNs)")
     p.add_argument("--no-plot", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -210,9 +215,11 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _maybe_initialize_distributed()
         cfg, a, out, resume, extend_from = prepare(args)
+        cache = compile_cache.resolve(args.compile_cache)
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    compile_cache.enable(cache)
     if args.debug_nans:
         import jax
 
@@ -319,6 +326,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
 
     # The seed axis is sharded over all devices (a no-op with one device).
     seeds_sharding = NamedSharding(Mesh(np.array(jax.devices()), (SEED_AXIS,)), PartitionSpec(SEED_AXIS))
+    cache, cached_before = compile_cache.current(), compile_cache.entries(compile_cache.current())
     t0 = time.perf_counter()
     init_fn = jax.jit(vmap_seeds(trainer.init), out_shardings=seeds_sharding)
     checkpointer = Checkpointer(os.path.join(out, "checkpoints"))
@@ -345,7 +353,11 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
                        out_shardings=seeds_sharding, donate_argnums=0).lower(state).compile()
     compile_s = time.perf_counter() - t0
     buffer_mb = num_seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20
-    print(f"compiled in {compile_s:.1f} s; replay buffers {buffer_mb:,.0f} MiB", flush=True)
+    stored = compile_cache.entries(cache) - cached_before
+    cache_note = ("compile cache off" if cache is None else
+                  f"{stored} program(s) stored in the compile cache {cache}" if stored else
+                  f"loaded from the compile cache {cache}")
+    print(f"compiled in {compile_s:.1f} s ({cache_note}); replay buffers {buffer_mb:,.0f} MiB", flush=True)
 
     def ckpt_meta():
         return {"config": config_lib.to_dict(cfg), "run_args": a}
@@ -404,7 +416,8 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
         return 0
     state = _to_host(state)
     finalize(cfg, out, state, num_seeds, plot=plot, extra={
-        "compile_seconds": round(compile_s, 2), "train_seconds": round(train_s, 2),
+        "compile_seconds": round(compile_s, 2), "compile_cache": cache, "compile_cache_stored": stored,
+        "train_seconds": round(train_s, 2),
         "env_steps_per_second_total": round(num_seeds * chunks_run * cfg.run.eval_every / max(train_s, 1e-9), 1),
         "replay_mib": round(buffer_mb, 1), "peak_rss_mib": round(_peak_rss_mib(), 1),
         "devices": jax.device_count(), "backend": jax.default_backend(), "resumed_from_chunk": start,

@@ -43,6 +43,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     (["--method=ddpg", "--noise=ou", "--set", "noise.ou_dt=-1"], "noise.ou_dt must be a positive finite number"),
     (["--method=ddpg", "--noise=ou", "--set", "noise.ou_theta=nan"], "noise.ou_theta must be a finite number >= 0"),
     (["--set", "ddpg.final_init=nan"], "ddpg.final_init must be a finite number >= 0"),
+    (["--compile-cache", os.path.abspath(__file__)], "is a file, not a folder; pass --compile-cache DIR or off"),
+    (["--compile-cache", ""], "--compile-cache needs a folder (or 'off')"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, message, capsys):
     assert run.main(argv) == 2
@@ -81,7 +83,7 @@ def test_resume_without_a_checkpoint_fails_before_touching_the_run(tmp_path, cap
 def test_help_documents_every_option():
     text = run.build_parser().format_help()
     for opt in ("--env", "--seeds", "--method", "--teacher", "--preset", "--noise", "--steps", "--seed",
-                "--out", "--set", "--source", "--overwrite"):
+                "--out", "--set", "--source", "--overwrite", "--compile-cache"):
         assert opt in text
 
 

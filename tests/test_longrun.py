@@ -70,6 +70,51 @@ def test_resume_continues_bit_for_bit_without_duplicate_metrics(reference, tmp_p
     _assert_same_run(reference, out)
 
 
+def test_a_run_loaded_from_the_compile_cache_equals_a_compiled_one(reference, tmp_path, capsys):
+    from metapg_jax import compile_cache
+
+    cache = tmp_path / "xla"
+    outs = [str(tmp_path / f"run{i}") for i in range(2)]
+    try:
+        assert run.main(TINY + ["--steps=900", "--out", outs[0], "--compile-cache", str(cache)]) == 0
+        assert f"program(s) stored in the compile cache {cache}" in capsys.readouterr().out
+        stored = compile_cache.entries(str(cache))
+        assert stored >= 1
+        assert run.main(TINY + ["--steps=900", "--out", outs[1], "--compile-cache", str(cache)]) == 0
+        assert f"loaded from the compile cache {cache}" in capsys.readouterr().out
+        assert compile_cache.entries(str(cache)) == stored
+        summary = json.loads(open(os.path.join(outs[1], "summary.json")).read())
+        assert summary["compile_cache"] == str(cache) and summary["compile_cache_stored"] == 0
+        for out in outs:
+            _assert_same_run(out, reference)
+        assert run.main(TINY + ["--steps=300", "--out", str(tmp_path / "off"), "--compile-cache", "off"]) == 0
+        assert "(compile cache off)" in capsys.readouterr().out
+        assert compile_cache.current() is None and compile_cache.entries(str(cache)) == stored
+    finally:  # later tests in this process get the session's cache back
+        compile_cache.enable(compile_cache.resolve(None))
+
+
+def test_compile_cache_folder_choice(tmp_path, monkeypatch):
+    from metapg_jax import compile_cache
+
+    monkeypatch.setattr(compile_cache, "DEFAULT_DIR", str(tmp_path / "default"))
+    monkeypatch.delenv("JAX_COMPILATION_CACHE_DIR", raising=False)
+    monkeypatch.delenv("JAX_ENABLE_COMPILATION_CACHE", raising=False)
+    assert compile_cache.resolve(None) == str(tmp_path / "default") and (tmp_path / "default").is_dir()
+    monkeypatch.setenv("JAX_COMPILATION_CACHE_DIR", str(tmp_path / "env"))
+    assert compile_cache.resolve(None) == str(tmp_path / "env")
+    assert compile_cache.resolve(str(tmp_path / "flag")) == str(tmp_path / "flag")
+    assert compile_cache.resolve("off") is None
+    monkeypatch.setenv("JAX_ENABLE_COMPILATION_CACHE", "false")
+    assert compile_cache.resolve(None) is None
+    assert compile_cache.resolve(str(tmp_path / "flag")) == str(tmp_path / "flag")  # the flag wins
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(ValueError, match="is a file, not a folder"):
+        compile_cache.resolve(str(tmp_path / "file"))
+    with pytest.raises(ValueError, match="cannot be created"):
+        compile_cache.resolve(str(tmp_path / "file" / "below"))
+
+
 def test_extending_a_finished_run_equals_the_longer_run(reference, tmp_path):
     """600 steps (replay capacity 600), then --steps=900: the 900-step reference, bit for bit."""
     out = str(tmp_path / "run")
