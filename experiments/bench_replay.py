@@ -5,7 +5,8 @@
 One "cycle" = add 100 transitions, then draw 50 minibatches of 64 (the paper
 preset's DDPG cycle without the networks). Both buffers run the same scan of
 cycles for ``--seeds`` seeds in one compiled program; the script prints
-compile time and the median steady-state time per cycle over repeats.
+compile time (a cold compile: no persistent compile cache) and the median steady-state time
+per cycle over repeats.
 flashbax is optional (``pip install flashbax``); without it only ours is timed.
 """
 
@@ -95,6 +96,9 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--seeds, --cycles and --repeats must be positive")
     if a.capacity < 100:
         p.error(f"--capacity must hold one cycle's 100 added transitions, got {a.capacity}")
+    from metapg_jax import compile_cache
+
+    compile_cache.enable(None)  # cold compile times, whatever JAX_COMPILATION_CACHE_DIR says
     ours = bench("ring", make_ours, a.seeds, a.capacity, a.cycles, a.repeats)
     try:
         import flashbax  # noqa: F401

@@ -326,7 +326,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
 
     # The seed axis is sharded over all devices (a no-op with one device).
     seeds_sharding = NamedSharding(Mesh(np.array(jax.devices()), (SEED_AXIS,)), PartitionSpec(SEED_AXIS))
-    cache, cached_before = compile_cache.current(), compile_cache.entries(compile_cache.current())
+    cache, cache_before = compile_cache.current(), compile_cache.counts()
     t0 = time.perf_counter()
     init_fn = jax.jit(vmap_seeds(trainer.init), out_shardings=seeds_sharding)
     checkpointer = Checkpointer(os.path.join(out, "checkpoints"))
@@ -353,10 +353,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
                        out_shardings=seeds_sharding, donate_argnums=0).lower(state).compile()
     compile_s = time.perf_counter() - t0
     buffer_mb = num_seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20
-    stored = compile_cache.entries(cache) - cached_before
-    cache_note = ("compile cache off" if cache is None else
-                  f"{stored} program(s) stored in the compile cache {cache}" if stored else
-                  f"loaded from the compile cache {cache}")
+    cache_note, cache_record = compile_cache.describe(cache, cache_before, compile_cache.counts())
     print(f"compiled in {compile_s:.1f} s ({cache_note}); replay buffers {buffer_mb:,.0f} MiB", flush=True)
 
     def ckpt_meta():
@@ -416,7 +413,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
         return 0
     state = _to_host(state)
     finalize(cfg, out, state, num_seeds, plot=plot, extra={
-        "compile_seconds": round(compile_s, 2), "compile_cache": cache, "compile_cache_stored": stored,
+        "compile_seconds": round(compile_s, 2), **cache_record,
         "train_seconds": round(train_s, 2),
         "env_steps_per_second_total": round(num_seeds * chunks_run * cfg.run.eval_every / max(train_s, 1e-9), 1),
         "replay_mib": round(buffer_mb, 1), "peak_rss_mib": round(_peak_rss_mib(), 1),
