@@ -326,7 +326,7 @@ def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
 
 def _cold_compiles() -> None:
     """Compile times here are cold compiles: no persistent compile cache, whatever the environment
-    says (JAX_COMPILATION_CACHE_DIR); the ``--one`` subprocesses get JAX's off switch too."""
+    says (JAX_COMPILATION_CACHE_DIR); each ``--one`` subprocess calls this before it measures."""
     from metapg_jax import compile_cache
 
     compile_cache.enable(None)
@@ -424,7 +424,6 @@ def main(argv: list[str] | None = None) -> int:
         label = f"{spec['env']} {spec['method']} {spec['preset']} x{spec['seeds']}{_variant(spec)}"
         print(f"[{i + 1}/{len(specs)}] {label} ...", flush=True)
         res = subprocess.run([sys.executable, "-m", "experiments.bench", "--one", json.dumps(spec)],
-                             env={**os.environ, "JAX_ENABLE_COMPILATION_CACHE": "false"},
                              capture_output=True, text=True)
         line = [ln for ln in res.stdout.splitlines() if ln.startswith("BENCH_RESULT ")]
         if res.returncode != 0 or not line:

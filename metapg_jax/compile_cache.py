@@ -144,9 +144,3 @@ def current() -> str | None:
 
     return jax.config.jax_compilation_cache_dir if jax.config.jax_enable_compilation_cache else None
 
-
-def entries(path: str | None) -> int:
-    """How many compiled programs the folder holds (0 for None or a missing folder)."""
-    if path is None or not os.path.isdir(path):
-        return 0
-    return sum(name.endswith("-cache") for name in os.listdir(path))

@@ -86,7 +86,7 @@ def test_a_run_loaded_from_the_compile_cache_equals_a_compiled_one(reference, tm
         first, second = summaries
         assert first["compile_cache"] == second["compile_cache"] == str(cache)
         assert first["compile_cache_loaded"] == 0 and first["compile_cache_stored"] >= 2  # init, training chunk
-        assert first["compile_cache_stored"] == first["compile_cache_compiled"] == compile_cache.entries(str(cache))
+        assert first["compile_cache_stored"] == first["compile_cache_compiled"] == len(list(cache.glob("*-cache")))
         assert second["compile_cache_compiled"] == second["compile_cache_stored"] == 0
         assert second["compile_cache_loaded"] == first["compile_cache_stored"]
         for out in outs:
