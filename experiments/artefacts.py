@@ -208,6 +208,8 @@ class RunResult:
     provenance: dict          # reproduce.json ({} for runs not started by experiments.reproduce)
     steps: np.ndarray         # (T,) env steps of the evaluations
     values: np.ndarray        # (seeds, T) evaluation returns
+    train_seconds: float | None = None  # training time over all calls, from metrics.jsonl (reporting.training_seconds)
+    train_seconds_exact: bool = False
 
     @property
     def num_seeds(self) -> int:
@@ -238,12 +240,14 @@ def load_run(path: str, task: str = "", method: str = "") -> RunResult | None:
     if not rows:
         return None
     steps, values = reporting.curves(rows)
+    train_s, exact = reporting.training_seconds(rows)
     summary = read_json(os.path.join(path, "summary.json"))
     info = {k: v for k, v in stored.items() if k not in ("config", "run_args")}
     return RunResult(task=task or stored["config"]["env"]["name"], method=method, path=path,
                      complete=bool(summary), config=stored["config"], run_args=stored["run_args"], info=info,
                      summary=summary, provenance=read_json(os.path.join(path, "reproduce.json")),
-                     steps=np.asarray(steps), values=np.asarray(values, np.float64))
+                     steps=np.asarray(steps), values=np.asarray(values, np.float64),
+                     train_seconds=None if train_s is None else round(train_s, 2), train_seconds_exact=exact)
 
 
 def read_json(path: str) -> dict:
@@ -322,7 +326,10 @@ def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = 
 # ---------------------------------------------------------------------------------------------- provenance
 
 def cell_provenance(r: RunResult) -> dict:
-    """What a result cell was made from: commit, config, seeds, budget, machine, wall time."""
+    """What a result cell was made from: commit, config, seeds, budget, machine, wall time.
+
+    ``wall_seconds`` is reproduce.json's (the recorded calls, compile included) or else the run's own
+    summary; ``train_seconds_all_calls`` adds up the training time of every call from the metrics rows."""
     prov = r.provenance
     wall = prov.get("wall_seconds")
     if wall is None and r.summary:
@@ -334,6 +341,9 @@ def cell_provenance(r: RunResult) -> dict:
         "preset": r.config.get("preset"), "run_args": r.run_args, "config": r.config,
         "machine": prov.get("machine") or {k: r.info.get(k) for k in ("jax_version", "backend", "devices")},
         "wall_seconds": wall,
+        # every call's training time, compile excluded, from the metrics rows: also the calls a session end
+        # killed before reproduce.json recorded them (which wall_seconds misses)
+        "train_seconds_all_calls": r.train_seconds, "train_seconds_all_calls_exact": r.train_seconds_exact,
     }
 
 

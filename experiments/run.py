@@ -365,7 +365,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
     if start:
         progress.update(start * cfg.run.eval_every, np.full(1, np.nan))
     last_ckpt = time.perf_counter()
-    t_train = time.perf_counter()
+    t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
     status, chunks_run = 0, 0
     try:
         with _Interrupt() as interrupt:
@@ -384,7 +384,9 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
                     status = 3
                     break
                 if main_process:
-                    metrics_writer.write(reporting.chunk_rows(metrics, chunk, time.perf_counter() - t_train))
+                    now = time.perf_counter()
+                    metrics_writer.write(reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk))
+                    t_chunk = now
                     if cycle_writer is not None:
                         cycle_writer.write(reporting.cycle_rows(metrics, TEACHER_CYCLE_METRICS,
                                                                 chunk * cfg.cycles_per_chunk))

@@ -113,8 +113,12 @@ def savez_atomic(path: str, arrays: dict) -> None:
     os.replace(tmp, path)
 
 
-def chunk_rows(metrics: dict, chunk: int, wall_time: float) -> list[dict]:
-    """One row per seed from a chunk's metrics (numpy, leading seed axis)."""
+def chunk_rows(metrics: dict, chunk: int, wall_time: float, chunk_seconds: float | None = None) -> list[dict]:
+    """One row per seed from a chunk's metrics (numpy, leading seed axis).
+
+    ``wall_time``: seconds since this process started training (after compiling; a resumed call starts
+    again from 0); ``chunk_seconds``: this chunk's own training time, so :func:`training_seconds` can add up
+    a run's calls exactly."""
     cyc = metrics["cycle"]
     num_seeds = metrics["env_steps"].shape[0]
     rows = []
@@ -133,6 +137,8 @@ def chunk_rows(metrics: dict, chunk: int, wall_time: float) -> list[dict]:
             if n_eps > 0 else None,
             "wall_time": round(wall_time, 3),
         }
+        if chunk_seconds is not None:
+            row["chunk_seconds"] = round(chunk_seconds, 3)
         for name, values in cyc.items():
             if name in ("train_return", "train_episodes", "finite") or np.ndim(values[i]) != 1:
                 continue
@@ -176,6 +182,35 @@ class Progress:
 
     def close(self) -> None:
         self.bar.close()
+
+
+def training_seconds(rows: list[dict]) -> tuple[float | None, bool]:
+    """(seconds of training over all the calls that made these metrics rows, exact?); compile excluded;
+    (None, False) for rows without times.
+
+    Rows with ``chunk_seconds`` add up exactly. Older rows only have ``wall_time``, the time since their
+    call started training: a chunk whose ``wall_time`` is below the previous chunk's starts a new call
+    (a resume). That misses a resume whose first chunk took longer than all the previous call did (a
+    call killed after a single chunk, say), so the result is then flagged not exact. The reproduce
+    record's wall time misses calls killed before they could write it; this does not."""
+    by_chunk: dict[int, dict] = {}
+    for r in rows:
+        if r.get("wall_time") is not None:
+            by_chunk.setdefault(int(r["chunk"]), r)
+    if not by_chunk:
+        return None, False
+    total, prev, exact = 0.0, None, True
+    for chunk in sorted(by_chunk):
+        r = by_chunk[chunk]
+        if r.get("chunk_seconds") is not None:
+            total += float(r["chunk_seconds"])
+            prev = float(r["wall_time"])
+            continue
+        exact = False
+        wall = float(r["wall_time"])
+        total += wall if prev is None or wall < prev else wall - prev
+        prev = wall
+    return total, exact
 
 
 def curves(rows: list[dict], key: str = "eval_return") -> tuple[np.ndarray, np.ndarray]:

@@ -106,6 +106,10 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     assert rows[-1]["env_steps"] == 600
     summary = json.loads((out / "summary.json").read_text())
     assert len(summary["final_eval_return_per_seed"]) == 2
+    from metapg_jax import reporting
+
+    train_s, exact = reporting.training_seconds(rows)
+    assert exact and all(r["chunk_seconds"] > 0 for r in rows) and 0 < train_s <= summary["train_seconds"]
     assert summary["final_eval_return_mean"] == pytest.approx(
         sum(summary["final_eval_return_per_seed"]) / 2, rel=1e-5)
     import numpy as np

@@ -25,7 +25,7 @@ TINY = ["--env=pendulum", "--method=meta", "--seeds=2", "--quiet", "--no-plot",
 def _metrics(out):
     rows = [json.loads(line) for line in open(os.path.join(out, "metrics.jsonl"))]
     for r in rows:
-        r.pop("wall_time")
+        r.pop("wall_time"), r.pop("chunk_seconds")
     return rows
 
 

@@ -81,6 +81,22 @@ def fabricated(tmp_path_factory):
     return {"root": root, "results": results, "data": data, "steps": steps, "manifest": manifest}
 
 
+def test_training_seconds_add_up_every_call():
+    from metapg_jax import reporting
+
+    def rows(walls, chunk_seconds=None, seeds=2):
+        return [{"seed": s, "chunk": c, "wall_time": w, **({} if chunk_seconds is None else
+                                                              {"chunk_seconds": chunk_seconds[c]})}
+                for c, w in enumerate(walls) for s in range(seeds)]
+
+    # older rows (wall_time only): a call of 3 chunks, killed, resumed for 2 (its clock restarts at 0)
+    assert reporting.training_seconds(rows([10.0, 20.0, 30.0, 5.0, 15.0])) == (45.0, False)
+    # rows with chunk_seconds add up exactly, also where the clock restart is invisible in wall_time
+    exact = rows([10.0, 40.0, 50.0], chunk_seconds=[10.0, 40.0, 10.0])
+    assert reporting.training_seconds(exact) == (60.0, True)
+    assert reporting.training_seconds([{"seed": 0, "chunk": 0}]) == (None, False)
+
+
 def test_table2_numbers_match_hand_computation(fabricated):
     table = json.loads((fabricated["results"] / "table2.json").read_text())
     row = next(r for r in table["rows"] if r["task"] == "inverted_double_pendulum")
