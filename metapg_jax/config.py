@@ -79,7 +79,7 @@ class NoiseConfig:
 
 @dataclasses.dataclass(frozen=True)
 class MetaConfig:
-    """The teacher and Algorithm 1's schedule (DESIGN.md, paper section 4 and 5.1)."""
+    """The teacher and Algorithm 1's schedule (../shared/DESIGN.md, paper section 4 and 5.1)."""
 
     teacher: str = "independent"    # 'independent' (own mean + log-std MLPs) or 'variance' (student mean)
     hidden: tuple[int, ...] = (64, 64)

@@ -1,6 +1,6 @@
 """Algorithm 1 of Xu et al. (2018), one meta-iteration ("cycle") as the scan body.
 
-Per seed, per cycle (DESIGN.md steps 1-8; defaults in brackets):
+Per seed, per cycle (../shared/DESIGN.md steps 1-8; defaults in brackets):
 
 1. D0: ``explore_steps`` [100] transitions from the teacher pi_e in the
    exploring env (episodes continue across cycles).
