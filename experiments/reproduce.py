@@ -156,7 +156,8 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
     ``started`` is ``reporting.provenance()`` taken when the call began (the code that ran, even if
     the checkout changed while it ran); every call (a resume is one) keeps its own commit, and the
     top-level ``commit`` is the one the cell was started at (its config.json's, also when the first call was
-    killed before it could write this record; ``wall_seconds`` then counts the recorded calls only)."""
+    killed before it could write this record; ``wall_seconds`` then counts the recorded calls only; the
+    results manifest's ``train_seconds_all_calls`` adds up every call's training from the metrics rows)."""
     from metapg_jax import reporting
 
     path = os.path.join(out, "reproduce.json")
