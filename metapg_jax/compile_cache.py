@@ -67,7 +67,7 @@ def resolve(flag: str | None) -> str | None:
         raise ValueError("--compile-cache needs a folder (or 'off')")
     if "://" in path:  # a remote cache (e.g. gs://...): JAX's own file handling (etils) takes it as is
         return path
-    path = os.path.abspath(os.path.expanduser(path))
+    path = _local(path)
     if os.path.exists(path) and not os.path.isdir(path):
         raise ValueError(f"compile cache {path} is a file, not a folder; pass --compile-cache DIR or off")
     try:
@@ -78,6 +78,11 @@ def resolve(flag: str | None) -> str | None:
     if not os.access(path, os.W_OK):
         raise ValueError(f"compile cache {path} is not writable; pass --compile-cache DIR or off")
     return path
+
+
+def _local(path: str) -> str:
+    """A local folder's path as :func:`resolve` returns it (user expanded, absolute)."""
+    return os.path.abspath(os.path.expanduser(path))
 
 
 def enable(path: str | None) -> None:
@@ -102,7 +107,7 @@ def enable(path: str | None) -> None:
 def _max_size(path: str | None) -> int:
     """MAX_BYTES for our folders; JAX's own limit (-1: none) for the folder JAX_COMPILATION_CACHE_DIR names."""
     env = os.environ.get("JAX_COMPILATION_CACHE_DIR")
-    if path is not None and env and (path == env or path == os.path.abspath(os.path.expanduser(env))):
+    if path is not None and env and path in (env, _local(env)):
         try:
             return int(os.environ.get("JAX_COMPILATION_CACHE_MAX_SIZE", "-1"))
         except ValueError:
