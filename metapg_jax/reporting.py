@@ -201,14 +201,12 @@ def training_seconds(rows: list[dict]) -> tuple[float | None, bool]:
         return None, False
     total, prev, exact = 0.0, None, True
     for chunk in sorted(by_chunk):
-        r = by_chunk[chunk]
+        r, wall = by_chunk[chunk], float(by_chunk[chunk]["wall_time"])
         if r.get("chunk_seconds") is not None:
             total += float(r["chunk_seconds"])
-            prev = float(r["wall_time"])
-            continue
-        exact = False
-        wall = float(r["wall_time"])
-        total += wall if prev is None or wall < prev else wall - prev
+        else:
+            exact = False
+            total += wall if prev is None or wall < prev else wall - prev
         prev = wall
     return total, exact
 
