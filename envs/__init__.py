@@ -1,9 +1,11 @@
 """Environment registry: ``envs.make(name, **overrides)`` -> a wrapped Brax ``Env``.
 
 Tasks are the paper's six. Pendulum is our JAX port of gymnasium's
-Pendulum-v1; the five MuJoCo tasks are gymnasium's v5 models stepped by MJX
-(``source='gymnasium'``, the default and the reference) or, as an explicit
-fast option, brax's own simplified versions (``source='brax'``). Every env
+Pendulum-v1; the five MuJoCo tasks are gymnasium's v5 models
+(``source='gymnasium'``, the default and the reference) stepped by MJX
+(``physics='mjx'``, the default) or by MuJoCo's own C engine from inside the
+program (``physics='mujoco'``, envs/mujoco_c.py), or, as an explicit fast
+option, brax's own simplified versions on MJX (``source='brax'``). Every env
 takes actions in [-1, 1] and is wrapped for the time limit, auto-reset and
 episode statistics (see ``envs/wrappers.py``).
 
@@ -55,6 +57,9 @@ TASKS: dict[str, TaskSpec] = {
 }
 
 SOURCES = ("gymnasium", "brax")
+# Physics engines of the gymnasium MuJoCo tasks: MJX (JAX, float32; any accelerator) or MuJoCo's own
+# C engine called from inside the program (float64, gymnasium's numbers; host CPU). See envs/mujoco_c.py.
+PHYSICS = ("mjx", "mujoco")
 
 
 def default_budget(name: str) -> int:
@@ -74,11 +79,25 @@ def get_spec(name: str) -> TaskSpec:
     return TASKS[name]
 
 
-def make_raw(name: str, source: str = "gymnasium", **overrides) -> Env:
+def check_physics(name: str, source: str, physics: str) -> None:
+    """Raises ``ValueError`` (one line) for an engine the task or source cannot use."""
+    if physics not in PHYSICS:
+        raise ValueError(f"unknown physics {physics!r}; valid physics: {', '.join(PHYSICS)}")
+    if physics == "mujoco" and name == "pendulum":
+        raise ValueError("pendulum is a JAX task without MuJoCo physics: --physics=mujoco applies to the "
+                         "five MuJoCo tasks (use the default for pendulum)")
+    if physics == "mujoco" and source != "gymnasium":
+        raise ValueError(f"--physics=mujoco steps gymnasium's models; source {source!r} has only MJX "
+                         f"(use --source=gymnasium or --physics=mjx)")
+
+
+def make_raw(name: str, source: str = "gymnasium", physics: str = "mjx", physics_threads: int | None = None,
+             **overrides) -> Env:
     """The task without wrappers (no time limit, no auto-reset)."""
     get_spec(name)
     if source not in SOURCES:
         raise ValueError(f"unknown source {source!r}; valid sources: {', '.join(SOURCES)}")
+    check_physics(name, source, physics)
     if name == "pendulum":
         if source != "gymnasium":
             raise ValueError("pendulum has only the gymnasium source (our JAX port of Pendulum-v1)")
@@ -88,19 +107,27 @@ def make_raw(name: str, source: str = "gymnasium", **overrides) -> Env:
     from envs import gym_mujoco
 
     table = gym_mujoco.GYMNASIUM_TASKS if source == "gymnasium" else gym_mujoco.BRAX_TASKS
-    return table[name](**overrides)
+    task = table[name](**overrides)
+    if physics == "mujoco":
+        from envs.mujoco_c import MujocoCEnv
+
+        return MujocoCEnv(task, threads=physics_threads)
+    return task
 
 
-def make(name: str, source: str = "gymnasium", episode_length: int | None = None, **overrides) -> Env:
+def make(name: str, source: str = "gymnasium", episode_length: int | None = None, physics: str = "mjx",
+         physics_threads: int | None = None, **overrides) -> Env:
     """A task wrapped for training: time limit, auto-reset, episode statistics.
 
     Args:
       name: one of ``TASKS``.
-      source: ``'gymnasium'`` (default: gymnasium's v5 model on MJX) or ``'brax'``.
+      source: ``'gymnasium'`` (default: gymnasium's v5 model) or ``'brax'`` (brax's own, MJX only).
       episode_length: time limit; default gymnasium's (1000; Reacher 50; Pendulum 200).
+      physics: ``'mjx'`` (default) or ``'mujoco'`` (MuJoCo's C engine, envs/mujoco_c.py).
+      physics_threads: the C engine's threads per batch (default: the CPUs this process may use).
       **overrides: keyword arguments of the task class (e.g. ``reset_noise_scale``).
     """
     spec = get_spec(name)
-    env = make_raw(name, source, **overrides)
+    env = make_raw(name, source, physics, physics_threads, **overrides)
     length = spec.episode_length if episode_length is None else episode_length
     return AutoResetWrapper(EpisodeWrapper(env, length))

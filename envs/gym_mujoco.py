@@ -133,16 +133,34 @@ def gymnasium_asset_path(xml_file: str) -> str:
     return os.path.join(_GYM_ASSETS, xml_file)
 
 
+def _norm(xp, v):
+    """Euclidean norm over the last axis, as gymnasium's ``np.linalg.norm`` of one vector computes it."""
+    if xp is np:
+        # numpy's 1-D norm is sqrt(v.dot(v)); rows one at a time so a batch gives the same bits.
+        flat = v.reshape(-1, v.shape[-1])
+        return np.array([np.linalg.norm(r) for r in flat]).reshape(v.shape[:-1])
+    return xp.linalg.norm(v, axis=-1)
+
+
 class GymMujocoEnv(Env):
     """Shared machinery of the gymnasium-on-MJX tasks (gymnasium ``MujocoEnv``).
 
     Subclasses set ``gym_id`` and implement ``_obs_size``, ``_get_obs``,
     ``sample_qpos_qvel`` (reset noise) and ``_reward_done``; ``_metric_keys``
     lists the reward components written to ``State.metrics``.
+
+    The task math (``_get_obs``, ``_reward_done``, ``is_healthy``) is written
+    once for both engines: it takes the array module ``xp`` and a physics view
+    ``data`` with ``qpos``, ``qvel`` and the ``derived_fields`` the task reads
+    (MJX: ``jax.numpy`` on one ``mjx.Data``, float32; MuJoCo's C engine,
+    ``envs/mujoco_c.py``: ``numpy`` on (n, ...) float64 arrays of a batch), so
+    it indexes with ``[..., i]`` and reduces over ``axis=-1``.
     """
 
     gym_id: str = ""
     _metric_keys: Tuple[str, ...] = ()
+    # MjData fields besides qpos/qvel that _get_obs/_reward_done read (computed by the step).
+    derived_fields: Tuple[str, ...] = ()
 
     def __init__(self, xml_file: str, frame_skip: int, early_exit_linesearch: bool = True):
         # See the module docstring ("Speed"); False gives MJX's stock line search.
@@ -193,8 +211,8 @@ class GymMujocoEnv(Env):
             data = jax.lax.fori_loop(
                 0, self.frame_skip, lambda _, d: mjx.step(self.mjx_model, d), data
             )
-        obs = self._get_obs(data)
-        reward, terminated, metrics = self._reward_done(data0, data, ctrl, obs)
+        obs = self._get_obs(jnp, data)
+        reward, terminated, metrics = self._reward_done(jnp, data0, data, ctrl, obs)
         return state.replace(
             pipeline_state=data,
             obs=obs,
@@ -222,7 +240,7 @@ class GymMujocoEnv(Env):
         zero = jnp.zeros((), jnp.float32)
         return State(
             pipeline_state=data,
-            obs=self._get_obs(data),
+            obs=self._get_obs(jnp, data),
             reward=zero,
             done=zero,
             metrics={k: zero for k in self._metric_keys},
@@ -237,14 +255,15 @@ class GymMujocoEnv(Env):
     def _obs_size(self) -> int:
         raise NotImplementedError
 
-    def _get_obs(self, data: mjx.Data) -> jax.Array:
+    def _get_obs(self, xp, data) -> jax.Array:
+        """The observation of ``data`` (written once for both engines, see the module docstring)."""
         raise NotImplementedError
 
     def sample_qpos_qvel(self, rng: jax.Array) -> Tuple[jax.Array, jax.Array]:
         """Initial (qpos, qvel) with gymnasium's ``reset_model`` noise."""
         raise NotImplementedError
 
-    def _reward_done(self, data0, data, ctrl, obs):
+    def _reward_done(self, xp, data0, data, ctrl, obs):
         """Return (reward, terminated, metrics) for the transition data0 -> data."""
         raise NotImplementedError
 
@@ -273,8 +292,8 @@ class InvertedPendulum(GymMujocoEnv):
     def _obs_size(self):
         return self.mj_model.nq + self.mj_model.nv
 
-    def _get_obs(self, data):
-        return jnp.concatenate([data.qpos, data.qvel])
+    def _get_obs(self, xp, data):
+        return xp.concatenate([data.qpos, data.qvel], axis=-1)
 
     def sample_qpos_qvel(self, rng):
         k1, k2 = jax.random.split(rng)
@@ -284,9 +303,9 @@ class InvertedPendulum(GymMujocoEnv):
             self.init_qvel + self._uniform(k2, self.mj_model.nv, s),
         )
 
-    def _reward_done(self, data0, data, ctrl, obs):
-        terminated = jnp.logical_or(~jnp.all(jnp.isfinite(obs)), jnp.abs(obs[1]) > 0.2)
-        reward = 1.0 - terminated.astype(jnp.float32)
+    def _reward_done(self, xp, data0, data, ctrl, obs):
+        terminated = xp.logical_or(~xp.all(xp.isfinite(obs), axis=-1), xp.abs(obs[..., 1]) > 0.2)
+        reward = 1.0 - terminated.astype(obs.dtype)
         return reward, terminated, {"reward_survive": reward}
 
 
@@ -301,6 +320,7 @@ class InvertedDoublePendulum(GymMujocoEnv):
 
     gym_id = "InvertedDoublePendulum-v5"
     _metric_keys = ("reward_survive", "distance_penalty", "velocity_penalty")
+    derived_fields = ("site_xpos", "qfrc_constraint")
 
     def __init__(
         self,
@@ -318,15 +338,16 @@ class InvertedDoublePendulum(GymMujocoEnv):
         nq, nv = self.mj_model.nq, self.mj_model.nv
         return 1 + 2 * (nq - 1) + nv + 1
 
-    def _get_obs(self, data):
-        return jnp.concatenate(
+    def _get_obs(self, xp, data):
+        return xp.concatenate(
             [
-                data.qpos[:1],
-                jnp.sin(data.qpos[1:]),
-                jnp.cos(data.qpos[1:]),
-                jnp.clip(data.qvel, -10.0, 10.0),
-                jnp.clip(data.qfrc_constraint, -10.0, 10.0)[:1],
-            ]
+                data.qpos[..., :1],
+                xp.sin(data.qpos[..., 1:]),
+                xp.cos(data.qpos[..., 1:]),
+                xp.clip(data.qvel, -10.0, 10.0),
+                xp.clip(data.qfrc_constraint, -10.0, 10.0)[..., :1],
+            ],
+            axis=-1,
         )
 
     def sample_qpos_qvel(self, rng):
@@ -336,15 +357,16 @@ class InvertedDoublePendulum(GymMujocoEnv):
         qvel = self.init_qvel + s * jax.random.normal(k2, (self.mj_model.nv,), jnp.float32)
         return qpos, qvel
 
-    def _reward_done(self, data0, data, ctrl, obs):
+    def _reward_done(self, xp, data0, data, ctrl, obs):
         # gymnasium reads site_xpos[0] after mj_step, i.e. as left by the last
-        # forward pass inside the step; mjx.Data holds the same quantity.
-        x, _, y = data.site_xpos[0]
+        # forward pass inside the step; mjx.Data and the C engine's outputs hold
+        # the same quantity.
+        x, y = data.site_xpos[..., 0, 0], data.site_xpos[..., 0, 2]
         terminated = y <= 1.0
-        v1, v2 = data.qvel[1], data.qvel[2]
+        v1, v2 = data.qvel[..., 1], data.qvel[..., 2]
         dist_penalty = 0.01 * x**2 + (y - 2.0) ** 2
         vel_penalty = 1e-3 * v1**2 + 5e-3 * v2**2
-        alive_bonus = self._healthy_reward * (1.0 - terminated.astype(jnp.float32))
+        alive_bonus = self._healthy_reward * (1.0 - terminated.astype(obs.dtype))
         reward = alive_bonus - dist_penalty - vel_penalty
         metrics = {
             "reward_survive": alive_bonus,
@@ -361,15 +383,15 @@ class _LocomotionMixin:
         return self.mj_model.nq + self.mj_model.nv - int(self._exclude_current_positions_from_observation)
 
     def _positions_obs(self, data):
-        qpos = data.qpos[1:] if self._exclude_current_positions_from_observation else data.qpos
+        qpos = data.qpos[..., 1:] if self._exclude_current_positions_from_observation else data.qpos
         return qpos
 
-    def _forward_and_ctrl(self, data0, data, ctrl):
-        x_velocity = (data.qpos[0] - data0.qpos[0]) / self.dt
+    def _forward_and_ctrl(self, xp, data0, data, ctrl):
+        x_velocity = (data.qpos[..., 0] - data0.qpos[..., 0]) / self.dt
         forward_reward = self._forward_reward_weight * x_velocity
         # gymnasium charges the action it was given; with ctrlrange [-1, 1]
         # that equals ctrl (ours is clipped to the range first).
-        ctrl_cost = self._ctrl_cost_weight * jnp.sum(jnp.square(ctrl))
+        ctrl_cost = self._ctrl_cost_weight * xp.sum(xp.square(ctrl), axis=-1)
         return forward_reward, ctrl_cost
 
 
@@ -413,8 +435,8 @@ class Hopper(_LocomotionMixin, GymMujocoEnv):
             exclude_current_positions_from_observation
         )
 
-    def _get_obs(self, data):
-        return jnp.concatenate([self._positions_obs(data), jnp.clip(data.qvel, -10.0, 10.0)])
+    def _get_obs(self, xp, data):
+        return xp.concatenate([self._positions_obs(data), xp.clip(data.qvel, -10.0, 10.0)], axis=-1)
 
     def sample_qpos_qvel(self, rng):
         k1, k2 = jax.random.split(rng)
@@ -424,26 +446,26 @@ class Hopper(_LocomotionMixin, GymMujocoEnv):
             self.init_qvel + self._uniform(k2, self.mj_model.nv, s),
         )
 
-    def is_healthy(self, data) -> jax.Array:
+    def is_healthy(self, data, xp=jnp) -> jax.Array:
         """gymnasium's ``HopperEnv.is_healthy`` (strict inequalities)."""
-        z, angle = data.qpos[1], data.qpos[2]
-        state = jnp.concatenate([data.qpos, data.qvel])[2:]
+        z, angle = data.qpos[..., 1], data.qpos[..., 2]
+        state = xp.concatenate([data.qpos, data.qvel], axis=-1)[..., 2:]
         min_state, max_state = self._healthy_state_range
         min_z, max_z = self._healthy_z_range
         min_angle, max_angle = self._healthy_angle_range
-        healthy_state = jnp.all((min_state < state) & (state < max_state))
+        healthy_state = xp.all((min_state < state) & (state < max_state), axis=-1)
         healthy_z = (min_z < z) & (z < max_z)
         healthy_angle = (min_angle < angle) & (angle < max_angle)
         return healthy_state & healthy_z & healthy_angle
 
-    def _reward_done(self, data0, data, ctrl, obs):
-        healthy = self.is_healthy(data)
-        forward_reward, ctrl_cost = self._forward_and_ctrl(data0, data, ctrl)
+    def _reward_done(self, xp, data0, data, ctrl, obs):
+        healthy = self.is_healthy(data, xp)
+        forward_reward, ctrl_cost = self._forward_and_ctrl(xp, data0, data, ctrl)
         # As in gymnasium the survival bonus depends on health even when
         # terminate_when_unhealthy is False.
-        healthy_reward = self._healthy_reward * healthy.astype(jnp.float32)
+        healthy_reward = self._healthy_reward * healthy.astype(obs.dtype)
         reward = forward_reward + healthy_reward - ctrl_cost
-        terminated = ~healthy if self._terminate_when_unhealthy else jnp.zeros((), bool)
+        terminated = ~healthy if self._terminate_when_unhealthy else xp.zeros(healthy.shape, bool)
         metrics = {
             "reward_forward": forward_reward,
             "reward_ctrl": -ctrl_cost,
@@ -481,8 +503,8 @@ class HalfCheetah(_LocomotionMixin, GymMujocoEnv):
             exclude_current_positions_from_observation
         )
 
-    def _get_obs(self, data):
-        return jnp.concatenate([self._positions_obs(data), data.qvel])
+    def _get_obs(self, xp, data):
+        return xp.concatenate([self._positions_obs(data), data.qvel], axis=-1)
 
     def sample_qpos_qvel(self, rng):
         k1, k2 = jax.random.split(rng)
@@ -491,11 +513,11 @@ class HalfCheetah(_LocomotionMixin, GymMujocoEnv):
         qvel = self.init_qvel + s * jax.random.normal(k2, (self.mj_model.nv,), jnp.float32)
         return qpos, qvel
 
-    def _reward_done(self, data0, data, ctrl, obs):
-        forward_reward, ctrl_cost = self._forward_and_ctrl(data0, data, ctrl)
+    def _reward_done(self, xp, data0, data, ctrl, obs):
+        forward_reward, ctrl_cost = self._forward_and_ctrl(xp, data0, data, ctrl)
         reward = forward_reward - ctrl_cost
         metrics = {"reward_forward": forward_reward, "reward_ctrl": -ctrl_cost}
-        return reward, jnp.zeros((), bool), metrics
+        return reward, xp.zeros(reward.shape, bool), metrics
 
 
 class Reacher(GymMujocoEnv):
@@ -511,6 +533,7 @@ class Reacher(GymMujocoEnv):
 
     gym_id = "Reacher-v5"
     _metric_keys = ("reward_dist", "reward_ctrl")
+    derived_fields = ("xpos",)
 
     def __init__(
         self,
@@ -531,18 +554,19 @@ class Reacher(GymMujocoEnv):
 
     def _tip_to_target(self, data):
         # gymnasium's get_body_com reads body xpos (frame origin, not COM).
-        return data.xpos[self._fingertip] - data.xpos[self._target]
+        return data.xpos[..., self._fingertip, :] - data.xpos[..., self._target, :]
 
-    def _get_obs(self, data):
-        theta = data.qpos[:2]
-        return jnp.concatenate(
+    def _get_obs(self, xp, data):
+        theta = data.qpos[..., :2]
+        return xp.concatenate(
             [
-                jnp.cos(theta),
-                jnp.sin(theta),
-                data.qpos[2:],
-                data.qvel[:2],
-                self._tip_to_target(data)[:2],
-            ]
+                xp.cos(theta),
+                xp.sin(theta),
+                data.qpos[..., 2:],
+                data.qvel[..., :2],
+                self._tip_to_target(data)[..., :2],
+            ],
+            axis=-1,
         )
 
     def sample_qpos_qvel(self, rng):
@@ -560,12 +584,12 @@ class Reacher(GymMujocoEnv):
         qvel = qvel.at[-2:].set(0.0)
         return qpos, qvel
 
-    def _reward_done(self, data0, data, ctrl, obs):
-        reward_dist = -jnp.linalg.norm(self._tip_to_target(data)) * self._reward_dist_weight
+    def _reward_done(self, xp, data0, data, ctrl, obs):
+        reward_dist = -_norm(xp, self._tip_to_target(data)) * self._reward_dist_weight
         # ctrlrange is [-1, 1], so ctrl is the action gymnasium would charge.
-        reward_ctrl = -jnp.sum(jnp.square(ctrl)) * self._reward_control_weight
+        reward_ctrl = -xp.sum(xp.square(ctrl), axis=-1) * self._reward_control_weight
         metrics = {"reward_dist": reward_dist, "reward_ctrl": reward_ctrl}
-        return reward_dist + reward_ctrl, jnp.zeros((), bool), metrics
+        return reward_dist + reward_ctrl, xp.zeros(reward_dist.shape, bool), metrics
 
 
 def state_from_qpos_qvel(env: GymMujocoEnv, qpos, qvel) -> State:

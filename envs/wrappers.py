@@ -54,7 +54,23 @@ class EpisodeWrapper(Wrapper):
         return state.replace(info=info, done=zero)
 
     def step(self, state: State, action: jax.Array) -> State:
-        nstate = self.env.step(state, action)
+        return self._after_step(state, self.env.step(state, action))
+
+    def step_with_reset(self, state: State, action: jax.Array, reset_rng: jax.Array) -> tuple[State, State]:
+        """``(step(state, action), reset(reset_rng))``, the auto-reset wrapper's two calls.
+
+        An env with ``fused_autoreset`` (MuJoCo's C engine) does both in one host call, and only
+        for the envs whose episode ends (by its rule, or by this time limit, passed as
+        ``force_reset``); ``fresh`` then carries only ``pipeline_state`` and ``obs``, all that the
+        auto-reset reads of it.
+        """
+        if getattr(self.env, "fused_autoreset", False):
+            force = state.info["steps"] + 1 >= self.episode_length
+            nstate, fresh = self.env.step_with_reset(state, action, reset_rng, force)
+            return self._after_step(state, nstate), fresh
+        return self.step(state, action), self.reset(reset_rng)
+
+    def _after_step(self, state: State, nstate: State) -> State:
         steps = state.info["steps"] + 1
         terminated = nstate.done.astype(jnp.float32)
         truncated = jnp.where(steps >= self.episode_length, 1.0 - terminated, 0.0)
@@ -90,8 +106,10 @@ class AutoResetWrapper(Wrapper):
 
     def step(self, state: State, action: jax.Array) -> State:
         key, reset_rng = jax.random.split(state.info["reset_key"])
-        nstate = self.env.step(state, action)
-        fresh = self.env.reset(reset_rng)
+        if isinstance(self.env, EpisodeWrapper):
+            nstate, fresh = self.env.step_with_reset(state, action, reset_rng)
+        else:
+            nstate, fresh = self.env.step(state, action), self.env.reset(reset_rng)
         done = nstate.done > 0.5
 
         # Written for one env (``done`` is a scalar); callers vmap.

@@ -44,6 +44,8 @@ import time
 
 from experiments import artefacts
 
+# Where --physics=mujoco keeps its grid by default, apart from the MJX grid's runs/reproduce and results.
+MUJOCO_RUNS, MUJOCO_RESULTS = "runs/reproduce-mujoco", "results/mujoco"
 RUN_ORDER = ("inverted_double_pendulum", "pendulum", "inverted_pendulum", "reacher", "hopper", "halfcheetah")
 DEFAULT_SEEDS = 8
 
@@ -64,10 +66,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--preset", default="paper", choices=("paper", "modern"),
                    help="'paper' (default; results in --results-dir) or 'modern' (results in <results-dir>/modern)")
     p.add_argument("--source", default="gymnasium", help="MuJoCo models: gymnasium (default) or brax")
+    p.add_argument("--physics", default="mjx", choices=("mjx", "mujoco"),
+                   help="engine of the MuJoCo tasks: mjx (default) or mujoco (MuJoCo's C engine; its cells go to "
+                        f"{MUJOCO_RUNS} and {MUJOCO_RESULTS} unless --runs-dir/--results-dir are given; "
+                        "pendulum cells run on their JAX physics either way)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
                    help="config override passed to every cell's experiments.run (e.g. tiny test settings)")
-    p.add_argument("--runs-dir", default="runs/reproduce", help="grid root (default runs/reproduce)")
-    p.add_argument("--results-dir", default="results", help="artefact folder (default results)")
+    p.add_argument("--runs-dir", default=None, help="grid root (default runs/reproduce)")
+    p.add_argument("--results-dir", default=None, help="artefact folder (default results)")
     p.add_argument("--artefacts-only", action="store_true", help="train nothing; rebuild the artefacts only")
     artefacts.add_figure_options(p)
     p.add_argument("--no-plot", action="store_true", help="skip each run's own PNGs (the artefacts are still drawn)")
@@ -127,6 +133,8 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
     extension names the new budget)."""
     argv = [f"--env={task}", *artefacts.METHODS[method], f"--preset={args.preset}", f"--seeds={args.seeds}",
             f"--seed={args.seed}", f"--source={args.source}"]
+    if args.physics != "mjx" and task != "pendulum":
+        argv.append(f"--physics={args.physics}")
     if args.steps is not None or state == "extend":
         argv.append(f"--steps={wanted_budget(args, task)}")
     for item in args.overrides:
@@ -253,8 +261,15 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    mujoco = args.physics == "mujoco"
+    if args.runs_dir is None:
+        args.runs_dir = MUJOCO_RUNS if mujoco else "runs/reproduce"
+    if args.results_dir is None:
+        args.results_dir = MUJOCO_RESULTS if mujoco else "results"
     try:
         tasks = parse_list(args.tasks, artefacts.TASKS, "task")
+        if mujoco and args.source != "gymnasium":
+            raise ValueError(f"--physics=mujoco steps gymnasium's models; source {args.source!r} has only MJX")
         methods = parse_list(args.methods, tuple(artefacts.METHODS), "method")
         if args.seeds <= 0:
             raise ValueError(f"--seeds must be positive, got {args.seeds}")

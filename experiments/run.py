@@ -6,7 +6,8 @@
     python -m experiments.run --resume runs/hopper-meta-modern-s0
     python -m experiments.run --resume runs/hopper-meta-modern-s0 --steps=990000   # extend the budget
 
-Writes under ``--out`` (default ``runs/<env>-<method>-<preset>-s<seed>``):
+Writes under ``--out`` (default ``runs/<env>-<method>-<preset>-s<seed>``, ``...-<preset>-mujoco-s<seed>``
+with ``--physics=mujoco``):
 ``config.json``, ``metrics.jsonl`` (one line per seed per evaluation, appended
 as the run goes), ``cycles.jsonl`` (meta: per-cycle teacher metrics per seed),
 ``checkpoints/`` (the whole state, the last 2), ``learning_curve.png`` (mean ±
@@ -50,7 +51,8 @@ TEACHER_CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_
                          "teacher_entropy", "teacher_student_distance")
 # Arguments that define the run; stored in config.json so --resume can rebuild and compare it.
 RUN_ARGS = {"env": "pendulum", "method": "meta", "teacher": None, "preset": "paper", "noise": None,
-            "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "overrides": []}
+            "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "mjx",
+            "overrides": []}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -72,11 +74,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="base PRNG seed; seed i uses fold_in(PRNGKey(seed), i) (default 0)")
     p.add_argument("--steps", type=int, default=None,
                    help="stored env steps per seed (default: the paper's budget for the task)")
-    p.add_argument("--source", default=None, help="MuJoCo models: 'gymnasium' (v5 on MJX; default) or 'brax'")
+    p.add_argument("--source", default=None, help="MuJoCo models: 'gymnasium' (v5; default) or 'brax' (MJX only)")
+    p.add_argument("--physics", default=None,
+                   help="engine of the MuJoCo tasks: 'mjx' (JAX; default, the one for accelerators) or "
+                        "'mujoco' (MuJoCo's C engine inside the program: float64, gymnasium's numbers, "
+                        "several times faster on CPU; runs on the host CPU)")
     p.add_argument("--set", dest="overrides", action="append", default=None, metavar="GROUP.FIELD=VALUE",
                    help="override any config field, e.g. --set ddpg.tau=0.005 --set run.eval_every=3000 "
                         "(groups: env, run, ddpg, noise, meta; see metapg_jax/config.py)")
-    p.add_argument("--out", default=None, help="output folder (default runs/<env>-<method>-<preset>-s<seed>)")
+    p.add_argument("--out", default=None, help="output folder (default runs/<env>-<method>-<preset>[-mujoco]-s<seed>)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("--resume", default=None, metavar="RUN_DIR",
                    help="continue the run in RUN_DIR from its latest checkpoint; options given with it must "
@@ -108,7 +114,8 @@ def parse_overrides(items: list[str]) -> dict[str, str]:
 
 def run_args(args: argparse.Namespace, stored: dict | None = None) -> dict:
     """The run-defining arguments: given ones, else the stored run's (on resume), else the defaults."""
-    base = dict(RUN_ARGS if stored is None else stored)
+    # (A stored run older than an argument has the argument's default.)
+    base = dict(RUN_ARGS if stored is None else {**RUN_ARGS, **stored})
     for k in RUN_ARGS:
         v = getattr(args, k)
         if v is not None:
@@ -131,8 +138,14 @@ def config_from_run_args(a: dict) -> config_lib.Config:
         raise ValueError("--noise applies to --method=ddpg only (meta explores with its teacher)")
     cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], noise=a["noise"],
                                  steps=a["steps"], source=a["source"], teacher=a["teacher"],
-                                 overrides=parse_overrides(a["overrides"]))
+                                 overrides=parse_overrides(a["overrides"]), physics=a["physics"])
     return config_lib.validate(cfg)
+
+
+def _physics_label(cfg: config_lib.Config) -> str:
+    if cfg.env.name == "pendulum":
+        return "JAX"
+    return "MuJoCo C" if cfg.env.physics == "mujoco" else "MJX"
 
 
 def run_label(cfg: config_lib.Config) -> str:
@@ -184,7 +197,9 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
                 a = {**a, "overrides": list(a["overrides"]) + [f"run.eval_every={stored_every}"]}
                 cfg = config_from_run_args(a)
         # An extension changes the budget only (see the module docstring).
-        same_budget = {**stored["config"], "run": {**stored["config"]["run"], "total_steps": new_steps}}
+        # (Read back through from_dict: fields newer than the stored run compare as their defaults.)
+        stored_cfg = config_lib.to_dict(config_lib.from_dict(stored["config"]))
+        same_budget = {**stored_cfg, "run": {**stored_cfg["run"], "total_steps": new_steps}}
         differences = config_lib.diff(same_budget, config_lib.to_dict(cfg))
         differences += [f"{k} ({stored['run_args'][k]!r} -> {a[k]!r})" for k in ("seeds", "seed")
                         if stored["run_args"][k] != a[k]]
@@ -200,7 +215,8 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
     else:
         a = run_args(args)
         cfg = config_from_run_args(a)
-        out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}-{cfg.preset}-s{a['seed']}")
+        engine = "-mujoco" if cfg.env.physics == "mujoco" else ""
+        out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}-{cfg.preset}{engine}-s{a['seed']}")
         if os.path.exists(out) and not os.path.isdir(out):
             raise ValueError(f"--out {out} is a file, not a folder")
         if os.path.exists(out) and os.listdir(out) and not args.overwrite:
@@ -319,7 +335,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
     trainer = make_train(cfg)
     keys = seed_keys(seed, num_seeds)
     name = run_label(cfg)
-    print(f"{name} ({cfg.preset} preset, {cfg.env.source} source): {num_seeds} seeds x "
+    print(f"{name} ({cfg.preset} preset, {cfg.env.source} source, {_physics_label(cfg)} physics): {num_seeds} seeds x "
           f"{cfg.run.total_steps:,} env steps, {cfg.num_chunks} evaluations every {cfg.run.eval_every:,} steps "
           f"({cfg.cycles_per_chunk} cycles of {cfg.steps_per_cycle} steps) on {jax.device_count()} "
           f"{jax.default_backend()} device(s); output {out}", flush=True)
@@ -449,6 +465,7 @@ def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool
     rows = reporting.read_jsonl(os.path.join(out, "metrics.jsonl"))
     summary = reporting.summarize(rows)
     summary.update({"method": cfg.run.method, "env": cfg.env.name, "preset": cfg.preset, "source": cfg.env.source,
+                    "physics": cfg.env.physics,
                     **(extra or {})})
     reporting.write_json_atomic(os.path.join(out, "summary.json"), summary)
     export_policies(os.path.join(out, "policy.npz"), cfg, state.student.actor, state.normalizer)

@@ -46,6 +46,7 @@ IDENTITY_FIELDS = {"preset": "preset", "env.name": "task", "run.method": "method
 class EnvConfig:
     name: str = "pendulum"            # task, one of envs.TASKS
     source: str = "gymnasium"         # 'gymnasium' (reference) or 'brax' (fast, simplified models)
+    physics: str = "mjx"              # MuJoCo tasks' engine: 'mjx' (JAX, float32) or 'mujoco' (C, float64, host CPU)
     episode_length: int = 0           # time limit; 0 = gymnasium's for the task
 
 
@@ -153,7 +154,8 @@ class Config:
 
 def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "paper",
                 noise: str | None = None, steps: int | None = None, source: str = "gymnasium",
-                teacher: str | None = None, overrides: dict[str, Any] | None = None) -> Config:
+                teacher: str | None = None, overrides: dict[str, Any] | None = None,
+                physics: str = "mjx") -> Config:
     """A full config from a task, a method and a preset (see the module docstring)."""
     spec = envs.get_spec(env)
     if preset not in PRESETS:
@@ -170,7 +172,7 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
         # the DDPG baseline keeps baselines' 50 updates per 100-step cycle on every task.
         train = spec.train_steps if method == "meta" else RunConfig.train_steps
         run = RunConfig(method=method, total_steps=total, rollout_steps=100, train_steps=train)
-        cfg = Config(env=EnvConfig(env, source), run=run, meta=meta, preset=preset)
+        cfg = Config(env=EnvConfig(env, source, physics=physics), run=run, meta=meta, preset=preset)
     else:
         ddpg = DDPGConfig(hidden=(256, 256), layer_norm=False, critic_action_layer=0,
                           actor_lr=3e-4, critic_lr=3e-4, critic_l2=0.0, batch_size=256, tau=0.005,
@@ -180,7 +182,7 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
         if method == "meta":
             # No random warm-up: the teacher is the exploration from the first step.
             run = dataclasses.replace(run, warmup_steps=0)
-        cfg = Config(env=EnvConfig(env, source), run=run, ddpg=ddpg,
+        cfg = Config(env=EnvConfig(env, source, physics=physics), run=run, ddpg=ddpg,
                      noise=NoiseConfig(kind="normal", stddev=0.1), meta=meta, preset=preset)
     if noise is not None:
         cfg = dataclasses.replace(cfg, noise=dataclasses.replace(cfg.noise, kind=noise))
@@ -287,6 +289,7 @@ def validate(cfg: Config) -> Config:
     envs.get_spec(cfg.env.name)
     if cfg.env.source not in envs.SOURCES:
         raise ValueError(f"unknown source {cfg.env.source!r}; valid sources: {', '.join(envs.SOURCES)}")
+    envs.check_physics(cfg.env.name, cfg.env.source, cfg.env.physics)
     if cfg.run.method not in METHODS:
         raise ValueError(f"unknown method {cfg.run.method!r}; valid methods: {', '.join(METHODS)}")
     if cfg.preset not in PRESETS:

@@ -282,6 +282,7 @@ def make_train(config: Config, env: Env | None = None) -> Trainer:
 
     validate(config)
     if env is None:
-        env = envs.make(config.env.name, source=config.env.source, episode_length=config.episode_length)
+        env = envs.make(config.env.name, source=config.env.source, episode_length=config.episode_length,
+                        physics=config.env.physics)
     ddpg = DDPG(config.ddpg, int(env.observation_size), int(env.action_size))
     return Trainer(config, env, ddpg)

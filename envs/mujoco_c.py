@@ -1,0 +1,335 @@
+"""MuJoCo's C engine inside the compiled program (``physics='mujoco'``).
+
+The gymnasium v5 tasks of ``envs/gym_mujoco.py`` (their observation, reward,
+termination, reset noise and action scaling, written once) stepped by
+MuJoCo's own C library instead of MJX. Every env step of every seed is one
+``jax.pure_callback`` that receives the whole batch (``vmap_method=
+'broadcast_all'``: seeds x envs arrive as one array) and steps it with
+``mujoco.batch.Batch``, MuJoCo's thread pool over many simulations of one
+model. Its results are bit-identical to a loop of ``mj_step`` over one
+``MjData`` per simulation at any thread count (MuJoCo's documentation, and
+tests/test_physics.py checks the loop against gymnasium).
+
+What lives where:
+
+* **The physics state is in the JAX state.** ``State.pipeline_state`` is the
+  complete integration state (``mj_getState`` with ``mjSTATE_INTEGRATION``:
+  time, qpos, qvel, act, the solver's warm start, ctrl, applied forces, ...)
+  as float64, carried bit for bit as pairs of uint32 words, so x64 stays off
+  for the whole program. A step from a stored state is gymnasium's next step.
+  Checkpoints, bit-for-bit resume, chunked == single scan, sharding and the
+  NaN guard see a plain uint32 array.
+* **The task math runs on the host in float64.** Observations, rewards,
+  termination and reward components are computed by the task's own methods
+  with ``numpy`` in float64 (the same functions MJX traces with ``jax.numpy``
+  in float32), so they equal gymnasium's to the bit; the program gets them as
+  float32 (what the networks see; ``State.obs`` and ``reward`` are float32 as
+  with MJX).
+* **Nothing persists on the host between calls** but scratch: one
+  ``mujoco.batch.Batch`` (its ``MjData`` and thread pool) per batch size,
+  whose state rows every call overwrites from its input. A lock serialises
+  calls that share a scratch batch (e.g. callbacks of several devices).
+
+One callback per env step: the auto-reset is fused into the step
+(``step_with_reset``): the host steps every env, and envs that ended (their
+task terminated them, or the time limit ``force_reset`` says so) are reset
+in the same call (``mj_resetData``, the new qpos/qvel, ``mj_forward``, as
+gymnasium's ``reset``). Reset noise is drawn in the program with JAX's PRNG
+(float32, as with MJX: gymnasium's distribution, not its draws).
+
+The C engine runs on the host CPU even when JAX runs on a GPU: every step
+then crosses between device and host. MJX is the engine that scales on
+accelerators; this one is for CPUs (measured speeds: README "Physics").
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import types
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from brax.envs.base import Env, State
+from mujoco import batch as mj_batch
+
+__all__ = ["MujocoCEnv", "HostPhysics", "STATE_SPEC"]
+
+STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
+
+
+def default_threads() -> int:
+    """MuJoCo threads per batch: the CPUs this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def _words(x: jax.Array) -> jax.Array:
+    """float32 (..., k) -> uint32 (..., k), the same bits."""
+    return jax.lax.bitcast_convert_type(jnp.asarray(x, jnp.float32), jnp.uint32)
+
+
+def _floats(w: jax.Array) -> jax.Array:
+    return jax.lax.bitcast_convert_type(w, jnp.float32)
+
+
+class HostPhysics:
+    """The host side: steps and resets batches of one task's simulations in float64.
+
+    ``step`` and ``reset`` are plain numpy functions (used by the callbacks and
+    by tests that compare with gymnasium); ``step_words`` / ``reset_words`` are
+    the callbacks' entry points, one packed uint32 array in and one out.
+    """
+
+    def __init__(self, task, threads: int | None = None):
+        self.task = task
+        self.model = task.mj_model
+        self.frame_skip = int(task.frame_skip)
+        self.threads = default_threads() if threads is None else int(threads)
+        if self.threads < 1:
+            raise ValueError(f"physics threads must be >= 1, got {threads}")
+        self.nstate = mujoco.mj_stateSize(self.model, STATE_SPEC)
+        self.nq, self.nv, self.nu = self.model.nq, self.model.nv, self.model.nu
+        self.obs_size = int(task.observation_size)
+        self.metric_keys = tuple(task._metric_keys)
+        self.fields = tuple(task.derived_fields)
+        self._scratch: dict[int, _Scratch] = {}
+        self._lock = threading.Lock()
+        # Packed widths (uint32 words per env) of the callbacks' inputs and outputs.
+        self.w_state = 2 * self.nstate
+        self.w_step_out = self.w_state + 2 * self.obs_size + 2 + len(self.metric_keys)
+        self.w_reset_out = self.w_state + self.obs_size
+
+    def _get(self, nsim: int) -> "_Scratch":
+        s = self._scratch.get(nsim)
+        if s is None:
+            s = self._scratch[nsim] = _Scratch(self, nsim)
+        return s
+
+    # -- numpy API (float64) ------------------------------------------------------
+
+    def reset(self, qpos: np.ndarray, qvel: np.ndarray):
+        """States at (n, nq) / (n, nv) float64 qpos/qvel: returns (state rows (n, nstate), obs (n, obs))."""
+        qpos = np.asarray(qpos, np.float64).reshape(-1, self.nq)
+        qvel = np.asarray(qvel, np.float64).reshape(-1, self.nv)
+        with self._lock:
+            s = self._get(len(qpos))
+            s.reset(None, qpos, qvel)
+            return s.batch.state.copy(), s.obs()
+
+    def step(self, rows: np.ndarray, ctrl: np.ndarray, reset_qpos=None, reset_qvel=None, force_reset=None):
+        """One env step of n simulations from state rows (n, nstate) with ctrl (n, nu), in float64.
+
+        Returns a dict of float64 arrays: ``next_obs``, ``reward``, ``terminated`` (bool) and the
+        task's reward components (``metrics``), all of the step; and ``rows`` and ``obs``, the state
+        after it. With ``reset_qpos``/``reset_qvel`` (n, nq) / (n, nv), the envs that ended
+        (terminated, or ``force_reset``) are reset to them: their ``rows`` and ``obs`` are the reset
+        state's, and ``reset`` marks them.
+        """
+        rows = np.asarray(rows, np.float64).reshape(-1, self.nstate)
+        with self._lock:
+            s = self._get(len(rows))
+            s.batch.state[:] = rows
+            out = s.step(ctrl, reset_qpos, reset_qvel, force_reset)
+            out["rows"] = s.batch.state.copy()
+            return out
+
+    # -- callbacks (packed uint32 words) --------------------------------------------
+
+    def reset_words(self, words: np.ndarray) -> np.ndarray:
+        """[qpos f32 | qvel f32] per env -> [state | obs f32]."""
+        words = np.asarray(words)  # the callback may hand over jax Arrays: numpy from here on
+        lead = words.shape[:-1]
+        flat = words.reshape(-1, words.shape[-1]).view(np.float32)
+        rows, obs = self.reset(flat[:, :self.nq], flat[:, self.nq:self.nq + self.nv])
+        out = np.empty((len(rows), self.w_reset_out), np.uint32)
+        out[:, :self.w_state] = rows.view(np.uint32)
+        out.view(np.float32)[:, self.w_state:] = obs
+        return out.reshape(*lead, self.w_reset_out)
+
+    def step_words(self, words: np.ndarray, fused: bool) -> np.ndarray:
+        """[state | ctrl f32 (| reset qpos f32 | reset qvel f32 | force_reset f32)] per env ->
+        [state | next_obs f32 | obs f32 | reward f32 | terminated f32 | metrics f32]."""
+        words = np.asarray(words)
+        lead = words.shape[:-1]
+        flat = words.reshape(-1, words.shape[-1])
+        n, ws, no = len(flat), self.w_state, self.obs_size
+        f = flat[:, ws:].view(np.float32)
+        nq, nv, nu = self.nq, self.nv, self.nu
+        with self._lock:
+            s = self._get(n)
+            s.words[:] = flat[:, :ws]
+            if fused:
+                r = s.step(f[:, :nu], f[:, nu:nu + nq], f[:, nu + nq:nu + nq + nv], f[:, nu + nq + nv] > 0.5)
+            else:
+                r = s.step(f[:, :nu])
+            out = np.empty((n, self.w_step_out), np.uint32)
+            out[:, :ws] = s.words
+        o = out.view(np.float32)
+        o[:, ws:ws + no] = r["next_obs"]
+        o[:, ws + no:ws + 2 * no] = r["obs"]
+        k = ws + 2 * no
+        o[:, k] = r["reward"]
+        o[:, k + 1] = r["terminated"]
+        for i, name in enumerate(self.metric_keys):
+            o[:, k + 2 + i] = r["metrics"][name]
+        return out.reshape(*lead, self.w_step_out)
+
+
+class _Scratch:
+    """One batch size's scratch: a ``mujoco.batch.Batch`` and live views of its fields.
+
+    Holds nothing between calls that a call does not first overwrite (the state rows).
+    """
+
+    def __init__(self, host: HostPhysics, nsim: int):
+        self.task, self.frame_skip = host.task, host.frame_skip
+        self.batch = b = mj_batch.Batch(host.model, nsim, nthread=min(host.threads, nsim))
+        self.words = b.state.view(np.uint32)
+        self.qpos, self.ctrl = b.bind("qpos"), b.bind("ctrl")
+        # What the task math reads, as (n, ...) float64 arrays.
+        self.view = types.SimpleNamespace(qpos=self.qpos, qvel=b.bind("qvel"),
+                                          **{name: b.bind(name) for name in host.fields})
+
+    def obs(self, ids=None) -> np.ndarray:
+        view = self.view if ids is None else types.SimpleNamespace(
+            **{k: v[ids] for k, v in vars(self.view).items()})
+        return self.task._get_obs(np, view)
+
+    def reset(self, ids, qpos, qvel) -> None:
+        """gymnasium's reset of simulations ``ids`` (None: all): mj_resetData, set qpos/qvel, mj_forward."""
+        b = self.batch
+        b.reset(ids, stage=mujoco.mjtStage.mjSTAGE_NONE)
+        if ids is None:
+            self.qpos[:], self.view.qvel[:] = qpos, qvel
+        else:
+            self.qpos[ids], self.view.qvel[ids] = qpos, qvel
+        b.forward(ids)
+
+    def step(self, ctrl, reset_qpos=None, reset_qvel=None, force_reset=None) -> dict:
+        """The step of every simulation from the state rows as they are (see ``HostPhysics.step``)."""
+        self.ctrl[:] = ctrl
+        before = types.SimpleNamespace(qpos=self.qpos.copy())
+        self.batch.step(nstep=self.frame_skip)
+        next_obs = self.task._get_obs(np, self.view)
+        reward, terminated, metrics = self.task._reward_done(np, before, self.view, self.ctrl, next_obs)
+        out = {"next_obs": next_obs, "reward": reward, "terminated": terminated, "metrics": metrics,
+               "obs": next_obs, "reset": np.zeros_like(terminated)}
+        if reset_qpos is not None:
+            done = terminated | force_reset
+            if done.any():
+                ids = np.flatnonzero(done)
+                self.reset(ids, reset_qpos[ids], reset_qvel[ids])
+                obs = next_obs.copy()
+                obs[ids] = self.obs(ids)
+                out.update(obs=obs, reset=done)
+        return out
+
+
+class MujocoCEnv(Env):
+    """A gymnasium task of ``envs.gym_mujoco`` stepped by MuJoCo's C engine (Brax ``Env`` interface).
+
+    Same contract as the MJX task it wraps (actions in [-1, 1], ``done`` = gymnasium's terminated,
+    float32 ``obs``/``reward``/``metrics``, empty ``info`` at reset); ``pipeline_state`` is the
+    float64 integration state as uint32 words (``HostPhysics.nstate`` * 2).
+    """
+
+    # The auto-reset wrapper calls step_with_reset: one host call per step instead of two.
+    fused_autoreset = True
+
+    def __init__(self, task, threads: int | None = None):
+        self.task = task
+        self.host = HostPhysics(task, threads)
+        self.mj_model = task.mj_model
+        self.gym_id = task.gym_id
+        self.frame_skip = task.frame_skip
+        self.dt = task.dt
+
+    @property
+    def observation_size(self) -> int:
+        return self.host.obs_size
+
+    @property
+    def action_size(self) -> int:
+        return self.host.nu
+
+    @property
+    def backend(self) -> str:
+        return "mujoco"
+
+    # -- the program side -----------------------------------------------------------
+
+    def _state(self, words, obs, reward, done, metrics) -> State:
+        return State(pipeline_state=words, obs=obs, reward=reward, done=done, metrics=metrics, info={})
+
+    def state_from_qpos_qvel(self, qpos: jax.Array, qvel: jax.Array) -> State:
+        """State at qpos/qvel (float32 in the program), as gymnasium's ``reset`` makes it."""
+        h = self.host
+        words = jnp.concatenate([_words(qpos), _words(qvel)], axis=-1)
+        out = jax.pure_callback(h.reset_words, jax.ShapeDtypeStruct((h.w_reset_out,), jnp.uint32), words,
+                                vmap_method="broadcast_all")
+        zero = jnp.zeros((), jnp.float32)
+        return self._state(out[:h.w_state], _floats(out[h.w_state:]), zero, zero,
+                           {k: zero for k in h.metric_keys})
+
+    def reset(self, rng: jax.Array) -> State:
+        qpos, qvel = self.task.sample_qpos_qvel(rng)
+        return self.state_from_qpos_qvel(qpos, qvel)
+
+    def _call_step(self, state: State, action: jax.Array, reset=None):
+        h = self.host
+        ctrl = self.task.scale_action(jnp.clip(jnp.asarray(action, jnp.float32), -1.0, 1.0))
+        parts = [state.pipeline_state, _words(ctrl)]
+        if reset is not None:
+            qpos, qvel, force = reset
+            parts += [_words(qpos), _words(qvel), _words(force.astype(jnp.float32)[None])]
+        out = jax.pure_callback(
+            lambda w: h.step_words(w, reset is not None),
+            jax.ShapeDtypeStruct((h.w_step_out,), jnp.uint32), jnp.concatenate(parts, axis=-1),
+            vmap_method="broadcast_all")
+        words, f = out[:h.w_state], _floats(out[h.w_state:])
+        n = h.obs_size
+        metrics = {k: f[2 * n + 2 + i] for i, k in enumerate(h.metric_keys)}
+        # As MJX's step: ``info`` (the wrappers') passes through.
+        stepped = state.replace(pipeline_state=words, obs=f[:n], reward=f[2 * n], done=f[2 * n + 1],
+                                metrics=metrics)
+        return stepped, f[n:2 * n]
+
+    def step(self, state: State, action: jax.Array) -> State:
+        return self._call_step(state, action)[0]
+
+    def step_with_reset(self, state: State, action: jax.Array, reset_rng: jax.Array,
+                        force_reset: jax.Array) -> tuple[State, State]:
+        """The step and, where it ended the episode (terminated, or ``force_reset``), a fresh episode.
+
+        Returns ``(stepped, fresh)``: ``stepped`` is the step's state as ``step`` returns it but
+        with ``pipeline_state`` already the fresh episode's where it ended; ``fresh`` has the state
+        and first observation of the new episode there (elsewhere the stepped ones). One host call.
+        """
+        qpos, qvel = self.task.sample_qpos_qvel(reset_rng)
+        stepped, obs = self._call_step(state, action, (qpos, qvel, force_reset))
+        zero = jnp.zeros((), jnp.float32)
+        fresh = self._state(stepped.pipeline_state, obs, zero, zero, {k: zero for k in self.host.metric_keys})
+        return stepped, fresh
+
+    # -- host helpers -----------------------------------------------------------------
+
+    def state_from_gymnasium(self, qpos: np.ndarray, qvel: np.ndarray) -> State:
+        """State at float64 qpos/qvel (e.g. copied from a gymnasium env), computed on the host
+        without rounding to float32 (outside jit; one env, or a batch with a leading axis)."""
+        qpos = np.asarray(qpos, np.float64)
+        rows, obs = self.host.reset(qpos, qvel)
+        lead = qpos.shape[:-1]
+        zero = jnp.zeros(lead, jnp.float32)
+        return self._state(jnp.asarray(rows.view(np.uint32).reshape(*lead, -1)),
+                           jnp.asarray(obs.astype(np.float32).reshape(*lead, -1)), zero, zero,
+                           {k: zero for k in self.host.metric_keys})
+
+    def rows(self, state: State) -> np.ndarray:
+        """The float64 integration state rows of a (batched) State, on the host."""
+        words = np.ascontiguousarray(np.asarray(state.pipeline_state))
+        return words.view(np.float64)
