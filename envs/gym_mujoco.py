@@ -133,6 +133,15 @@ def gymnasium_asset_path(xml_file: str) -> str:
     return os.path.join(_GYM_ASSETS, xml_file)
 
 
+def _square(xp, x):
+    """``x**2`` as gymnasium computes it on numpy float64 *scalars*: C ``pow(x, 2)``, which differs
+    from ``x * x`` in the last bit for ~0.1% of values (numpy arrays' ``**2`` is ``x * x``;
+    ``np.float_power`` calls ``pow``). With ``jnp`` (MJX, float32) simply ``x**2``."""
+    if xp is np:
+        return np.float_power(x, 2.0)
+    return x**2
+
+
 def _norm(xp, v):
     """Euclidean norm over the last axis, as gymnasium's ``np.linalg.norm`` of one vector computes it."""
     if xp is np:
@@ -181,6 +190,8 @@ class GymMujocoEnv(Env):
         ctrlrange = np.asarray(self.mj_model.actuator_ctrlrange, dtype=np.float32)
         self._ctrl_low = jnp.asarray(ctrlrange[:, 0])
         self._ctrl_high = jnp.asarray(ctrlrange[:, 1])
+        # float64 for the C engine, which scales on the host (envs/mujoco_c.py).
+        self._ctrlrange64 = np.array(self.mj_model.actuator_ctrlrange, dtype=np.float64)
 
     # -- Brax Env interface -------------------------------------------------
 
@@ -223,8 +234,12 @@ class GymMujocoEnv(Env):
 
     # -- helpers --------------------------------------------------------------
 
-    def scale_action(self, action: jax.Array) -> jax.Array:
-        """Map a normalised action in [-1, 1] linearly onto ctrlrange."""
+    def scale_action(self, action: jax.Array, xp=jnp) -> jax.Array:
+        """Map a normalised action in [-1, 1] linearly onto ctrlrange (float32 with ``jnp``,
+        float64 with ``np``)."""
+        if xp is np:
+            low, high = self._ctrlrange64[:, 0], self._ctrlrange64[:, 1]
+            return low + (np.asarray(action, np.float64) + 1.0) * 0.5 * (high - low)
         return self._ctrl_low + (action + 1.0) * 0.5 * (self._ctrl_high - self._ctrl_low)
 
     def state_from_qpos_qvel(self, qpos: jax.Array, qvel: jax.Array) -> State:
@@ -364,8 +379,8 @@ class InvertedDoublePendulum(GymMujocoEnv):
         x, y = data.site_xpos[..., 0, 0], data.site_xpos[..., 0, 2]
         terminated = y <= 1.0
         v1, v2 = data.qvel[..., 1], data.qvel[..., 2]
-        dist_penalty = 0.01 * x**2 + (y - 2.0) ** 2
-        vel_penalty = 1e-3 * v1**2 + 5e-3 * v2**2
+        dist_penalty = 0.01 * _square(xp, x) + _square(xp, y - 2.0)
+        vel_penalty = 1e-3 * _square(xp, v1) + 5e-3 * _square(xp, v2)
         alive_bonus = self._healthy_reward * (1.0 - terminated.astype(obs.dtype))
         reward = alive_bonus - dist_penalty - vel_penalty
         metrics = {

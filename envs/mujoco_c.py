@@ -121,8 +121,9 @@ class HostPhysics:
             s.reset(None, qpos, qvel)
             return s.batch.state.copy(), s.obs()
 
-    def step(self, rows: np.ndarray, ctrl: np.ndarray, reset_qpos=None, reset_qvel=None, force_reset=None):
-        """One env step of n simulations from state rows (n, nstate) with ctrl (n, nu), in float64.
+    def step(self, rows: np.ndarray, action: np.ndarray, reset_qpos=None, reset_qvel=None, force_reset=None):
+        """One env step of n simulations from state rows (n, nstate) with actions (n, nu) in [-1, 1]
+        (mapped onto ctrlrange in float64 as the task's ``scale_action``; ``ctrl`` in the result), in float64.
 
         Returns a dict of float64 arrays: ``next_obs``, ``reward``, ``terminated`` (bool) and the
         task's reward components (``metrics``), all of the step; and ``rows`` and ``obs``, the state
@@ -134,7 +135,7 @@ class HostPhysics:
         with self._lock:
             s = self._get(len(rows))
             s.batch.state[:] = rows
-            out = s.step(ctrl, reset_qpos, reset_qvel, force_reset)
+            out = s.step(action, reset_qpos, reset_qvel, force_reset)
             out["rows"] = s.batch.state.copy()
             return out
 
@@ -152,7 +153,7 @@ class HostPhysics:
         return out.reshape(*lead, self.w_reset_out)
 
     def step_words(self, words: np.ndarray, fused: bool) -> np.ndarray:
-        """[state | ctrl f32 (| reset qpos f32 | reset qvel f32 | force_reset f32)] per env ->
+        """[state | action f32 (| reset qpos f32 | reset qvel f32 | force_reset f32)] per env ->
         [state | next_obs f32 | obs f32 | reward f32 | terminated f32 | metrics f32]."""
         words = np.asarray(words)
         lead = words.shape[:-1]
@@ -210,15 +211,15 @@ class _Scratch:
             self.qpos[ids], self.view.qvel[ids] = qpos, qvel
         b.forward(ids)
 
-    def step(self, ctrl, reset_qpos=None, reset_qvel=None, force_reset=None) -> dict:
+    def step(self, action, reset_qpos=None, reset_qvel=None, force_reset=None) -> dict:
         """The step of every simulation from the state rows as they are (see ``HostPhysics.step``)."""
-        self.ctrl[:] = ctrl
+        self.ctrl[:] = self.task.scale_action(action, np)
         before = types.SimpleNamespace(qpos=self.qpos.copy())
         self.batch.step(nstep=self.frame_skip)
         next_obs = self.task._get_obs(np, self.view)
         reward, terminated, metrics = self.task._reward_done(np, before, self.view, self.ctrl, next_obs)
         out = {"next_obs": next_obs, "reward": reward, "terminated": terminated, "metrics": metrics,
-               "obs": next_obs, "reset": np.zeros_like(terminated)}
+               "obs": next_obs, "reset": np.zeros_like(terminated), "ctrl": self.ctrl.copy()}
         if reset_qpos is not None:
             done = terminated | force_reset
             if done.any():
@@ -282,8 +283,10 @@ class MujocoCEnv(Env):
 
     def _call_step(self, state: State, action: jax.Array, reset=None):
         h = self.host
-        ctrl = self.task.scale_action(jnp.clip(jnp.asarray(action, jnp.float32), -1.0, 1.0))
-        parts = [state.pipeline_state, _words(ctrl)]
+        # Clipped here (exact); mapped onto ctrlrange on the host, in float64 (no float32 rounding,
+        # and no XLA fusion choice can change the controls).
+        action = jnp.clip(jnp.asarray(action, jnp.float32), -1.0, 1.0)
+        parts = [state.pipeline_state, _words(action)]
         if reset is not None:
             qpos, qvel, force = reset
             parts += [_words(qpos), _words(qvel), _words(force.astype(jnp.float32)[None])]

@@ -1,0 +1,268 @@
+"""MuJoCo's C engine inside the program (envs/mujoco_c.py, ``--physics=mujoco``).
+
+The reference is gymnasium itself (``gymnasium.make('X-v5')``, MuJoCo's C engine in float64):
+from the same initial state and the same actions, our observations, rewards, reward components,
+terminated/truncated flags and the complete integration state must equal gymnasium's bit for bit,
+on the host (float64) and through the compiled program (float32 casts of the same numbers).
+Compiling a C-engine program costs ~1-2 s (no MJX is traced), so these tests are cheap.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+
+import gymnasium
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+import pytest
+
+import envs
+from envs.gym_mujoco import GYMNASIUM_TASKS
+from envs.mujoco_c import STATE_SPEC, HostPhysics, MujocoCEnv
+
+# task -> (gymnasium id, steps of one whole episode: gymnasium's time limit)
+TASKS = {
+    "inverted_pendulum": ("InvertedPendulum-v5", 1000),
+    "inverted_double_pendulum": ("InvertedDoublePendulum-v5", 1000),
+    "hopper": ("Hopper-v5", 1000),
+    "halfcheetah": ("HalfCheetah-v5", 1000),
+    "reacher": ("Reacher-v5", 50),
+}
+# Two envs per batch: full-range random actions (falls at once on IP/IDP/Hopper, exercising
+# termination, contacts and joint limits) and actions scaled by 0.1 (stays up longer).
+SCALES = (1.0, 0.1)
+
+
+def _gym_state(data) -> np.ndarray:
+    state = np.empty(mujoco.mj_stateSize(data.model, STATE_SPEC))
+    mujoco.mj_getState(data.model, data, state, STATE_SPEC)
+    return state
+
+
+@pytest.fixture(scope="module", params=list(TASKS))
+def c_env(request):
+    name = request.param
+    return name, MujocoCEnv(GYMNASIUM_TASKS[name]())
+
+
+def _actions(env, steps, seed=0):
+    rng = np.random.default_rng(seed)
+    a = rng.uniform(-1, 1, (steps, len(SCALES), env.action_size)) * np.array(SCALES)[None, :, None]
+    return a.astype(np.float32)
+
+
+def _ctrl(env, actions):
+    """The float64 controls our step applies (the action clipped, mapped onto ctrlrange on the host)."""
+    return env.task.scale_action(np.clip(actions, -1.0, 1.0), np)
+
+
+def test_host_steps_equal_gymnasium_bit_for_bit_for_a_whole_episode(c_env):
+    """Both envs step on for the whole episode length, past a termination (as gymnasium's unwrapped
+    env and a batched learner between resets do): obs, reward, reward components, terminated and
+    the integration state (warm start included) equal gymnasium's at every step."""
+    name, env = c_env
+    gym_id, steps = TASKS[name]
+    gyms = [gymnasium.make(gym_id).unwrapped for _ in SCALES]
+    obs0 = [g.reset(seed=10 + i)[0] for i, g in enumerate(gyms)]
+    rows, obs = env.host.reset(np.stack([g.data.qpos for g in gyms]), np.stack([g.data.qvel for g in gyms]))
+    np.testing.assert_array_equal(obs, np.stack(obs0))
+    np.testing.assert_array_equal(rows, np.stack([_gym_state(g.data) for g in gyms]))
+    actions = _actions(env, steps)
+    ctrl = _ctrl(env, actions)
+    terminated_any = False
+    for t in range(steps):
+        r = env.host.step(rows, actions[t])
+        np.testing.assert_array_equal(r["ctrl"], ctrl[t])
+        for i, g in enumerate(gyms):
+            g_obs, g_rew, g_term, _, g_info = g.step(ctrl[t, i])
+            where = f"{name} env {i} step {t}"
+            assert r["next_obs"].dtype == np.float64
+            np.testing.assert_array_equal(r["next_obs"][i], g_obs, err_msg=where)
+            assert r["reward"][i] == g_rew, where
+            assert bool(r["terminated"][i]) == g_term, where
+            for k, v in r["metrics"].items():
+                assert v[i] == g_info[k], f"{where}: {k}"
+            np.testing.assert_array_equal(r["rows"][i], _gym_state(g.data), err_msg=where)
+            terminated_any |= g_term
+        rows = r["rows"]
+    if name in ("inverted_pendulum", "inverted_double_pendulum", "hopper"):
+        assert terminated_any, f"{name}: the random actions should end an episode"
+    assert np.ptp(rows[:, 1:1 + env.host.nq]) > 0.1  # the physics moved
+
+
+def _wrapped_start(wrapped, raw_state, key):
+    """A wrapped (time limit, auto-reset) state whose physics is ``raw_state``'s."""
+    s = wrapped.reset(key)
+    return s.replace(pipeline_state=raw_state.pipeline_state, obs=raw_state.obs,
+                     info={**s.info, "next_obs": raw_state.obs})
+
+
+def test_the_compiled_program_gives_gymnasiums_episode(c_env):
+    """envs.make(..., physics='mujoco') in jit + vmap from gymnasium's reset states, to the end of
+    gymnasium's episode (TimeLimit included): float32 obs, rewards and flags are gymnasium's numbers
+    cast; the auto-reset afterwards is gymnasium's reset at the sampled qpos/qvel."""
+    name, _ = c_env
+    gym_id, steps = TASKS[name]
+    wrapped = envs.make(name, physics="mujoco")
+    raw = wrapped.unwrapped
+    gyms = [gymnasium.make(gym_id) for _ in SCALES]
+    for i, g in enumerate(gyms):
+        g.reset(seed=20 + i)
+    qpos = np.stack([g.unwrapped.data.qpos for g in gyms])
+    qvel = np.stack([g.unwrapped.data.qvel for g in gyms])
+    start = jax.vmap(lambda raw_state, key: _wrapped_start(wrapped, raw_state, key))(
+        raw.state_from_gymnasium(qpos, qvel), jax.random.split(jax.random.PRNGKey(0), len(SCALES)))
+    actions = _actions(raw, steps, seed=1)
+
+    @jax.jit
+    def run(s, actions):
+        def body(s, a):
+            s = jax.vmap(wrapped.step)(s, a)
+            return s, (s.info["next_obs"], s.reward, s.info["terminated"], s.info["truncated"], s.obs,
+                       s.pipeline_state)
+        return jax.lax.scan(body, s, actions)
+
+    _, (next_obs, reward, term, trunc, obs, words) = jax.tree.map(np.asarray, run(start, actions))
+    ctrl = _ctrl(raw, actions)
+    for i, g in enumerate(gyms):
+        for t in range(steps):
+            g_obs, g_rew, g_term, g_trunc, _ = g.step(ctrl[t, i])
+            where = f"{name} env {i} step {t}"
+            np.testing.assert_array_equal(next_obs[t, i], g_obs.astype(np.float32), err_msg=where)
+            assert reward[t, i] == np.float32(g_rew), where
+            assert (term[t, i], trunc[t, i]) == (float(g_term), float(g_trunc)), where
+            if g_term or g_trunc:
+                break
+        assert g_term or g_trunc
+        # The next episode: gymnasium's reset (mj_resetData, qpos/qvel, mj_forward) of the drawn state.
+        rows = words[t, i].view(np.float64)
+        nq, nv = raw.host.nq, raw.host.nv
+        assert rows[0] == 0.0  # the integration state starts with the time
+        g.reset()
+        g.unwrapped.set_state(rows[1:1 + nq], rows[1 + nq:1 + nq + nv])
+        np.testing.assert_array_equal(rows, _gym_state(g.unwrapped.data), err_msg=f"{name} env {i}: reset")
+        np.testing.assert_array_equal(obs[t, i], g.unwrapped._get_obs().astype(np.float32))
+
+
+def test_the_vmapped_callback_gets_the_whole_batch_in_one_call(monkeypatch):
+    raw = envs.make_raw("inverted_double_pendulum", physics="mujoco")
+    calls = []
+    step_words = raw.host.step_words
+    monkeypatch.setattr(raw.host, "step_words", lambda w, fused: calls.append(np.shape(w)) or step_words(w, fused))
+    seeds, per_seed, steps = 3, 2, 4
+    keys = jax.random.split(jax.random.PRNGKey(0), seeds * per_seed).reshape(seeds, per_seed, 2)
+
+    @jax.jit
+    def run(keys):
+        s = jax.vmap(jax.vmap(raw.reset))(keys)
+        def body(s, _):
+            return jax.vmap(jax.vmap(raw.step))(s, jnp.zeros((seeds, per_seed, 1))), None
+        return jax.lax.scan(body, s, None, length=steps)[0]
+
+    out = run(keys)
+    assert calls == [(seeds, per_seed, raw.host.w_state + 1)] * steps
+    assert out.obs.shape == (seeds, per_seed, raw.observation_size)
+
+
+def test_engines_refuse_what_they_cannot_run():
+    with pytest.raises(ValueError, match="unknown physics 'bullet'; valid physics: mjx, mujoco"):
+        envs.make("hopper", physics="bullet")
+    with pytest.raises(ValueError, match="source 'brax' has only MJX"):
+        envs.make("hopper", source="brax", physics="mujoco")
+    with pytest.raises(ValueError, match="pendulum is a JAX task"):
+        envs.make("pendulum", physics="mujoco")
+    with pytest.raises(ValueError, match="physics threads must be >= 1"):
+        HostPhysics(GYMNASIUM_TASKS["reacher"](), threads=0)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--env=hopper", "--physics=mujoco", "--source=brax"], "error: --physics=mujoco steps gymnasium's models"),
+    (["--env=hopper", "--physics=warp"], "error: unknown physics 'warp'; valid physics: mjx, mujoco"),
+])
+def test_cli_refuses_bad_physics_before_compiling(argv, message, tmp_path, capsys):
+    from experiments import run
+
+    t0 = time.perf_counter()
+    assert run.main(argv + ["--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(message) and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "x").exists()
+    assert time.perf_counter() - t0 < 5  # nothing was traced or compiled
+
+
+# -- training with the C engine: deterministic, chunked == single scan, resume after SIGKILL ------------
+
+TINY_IP = ["--env=inverted_pendulum", "--physics=mujoco", "--method=meta", "--seeds=2", "--quiet", "--no-plot",
+           "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
+           "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--set", "meta.explore_steps=50",
+           "--set", "meta.eval_steps=100", "--set", "run.train_steps=5", "--set", "env.episode_length=60",
+           "--checkpoint-every=1", "--compile-cache=off"]
+
+
+@pytest.mark.parametrize("method", ["ddpg", "meta"])
+def test_c_engine_training_is_deterministic_and_chunked_equals_single_scan(method):
+    from metapg_jax.config import make_config
+    from metapg_jax.train import make_train, seed_keys, vmap_seeds
+
+    cfg = make_config("inverted_pendulum", method, steps=600, physics="mujoco",
+                      overrides={"run.eval_every": 300, "run.eval_episodes": 2, "ddpg.hidden": "16,16",
+                                 "ddpg.batch_size": 16, "run.train_steps": 5, "meta.hidden": "16,16",
+                                 "meta.explore_steps": 50, "meta.eval_steps": 100, "meta.visit_samples": 64,
+                                 "run.rollout_steps": 50, "env.episode_length": 60})
+    assert cfg.env.physics == "mujoco"
+    trainer = make_train(cfg)
+    assert trainer.env.unwrapped.backend == "mujoco"
+    keys = seed_keys(1, 2)
+    train = jax.jit(vmap_seeds(trainer.train))
+    full_state, full_metrics = train(keys)
+    again_state, again_metrics = train(keys)
+    for a, b in zip(jax.tree.leaves((full_state, full_metrics)), jax.tree.leaves((again_state, again_metrics))):
+        np.testing.assert_array_equal(a, b)
+    state = jax.jit(vmap_seeds(trainer.init))(keys)
+    chunk = jax.jit(vmap_seeds(trainer.train_chunk))
+    returns = []
+    for _ in range(cfg.num_chunks):
+        state, m = chunk(state)
+        returns.append(np.asarray(m["eval_return"]))
+    np.testing.assert_allclose(np.stack(returns, 1), full_metrics["eval_return"], rtol=1e-5, atol=1e-4)
+    assert state.env_state.pipeline_state.dtype == jnp.uint32
+    assert state.env_state.pipeline_state.shape == full_state.env_state.pipeline_state.shape
+    assert np.isfinite(np.asarray(full_metrics["eval_return"])).all()
+    assert int(full_state.env_steps[0]) == 600
+    kernel = np.asarray(jax.tree.leaves(full_state.student.actor)[0])
+    assert not np.array_equal(kernel[0], kernel[1])  # the seeds differ
+
+
+def test_c_engine_run_resumes_bit_for_bit_after_sigkill(tmp_path):
+    from experiments import run
+    from metapg_jax.checkpoint import Checkpointer
+    from tests.test_longrun import _assert_same_run, _subprocess
+
+    out = str(tmp_path / "killed")
+    steps = ["--steps=2400"]
+    proc = _subprocess(TINY_IP + steps + ["--out", out])
+    metrics = os.path.join(out, "metrics.jsonl")
+    deadline = time.time() + 300
+    while time.time() < deadline:
+        if os.path.exists(metrics) and sum(1 for _ in open(metrics)) >= 4:  # 2 chunks x 2 seeds
+            break
+        if proc.poll() is not None:
+            pytest.fail("the run ended before it could be killed: " + proc.stderr.read()[-2000:])
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    done = Checkpointer(os.path.join(out, "checkpoints")).steps()
+    assert done and done[-1] < 8, done
+    res = _subprocess(["--resume", out, "--quiet", "--no-plot", "--compile-cache=off"])
+    _, err = res.communicate(timeout=600)
+    assert res.returncode == 0, err[-3000:]
+    full = str(tmp_path / "full")
+    assert run.main(TINY_IP + steps + ["--out", full]) == 0
+    _assert_same_run(full, out)
+    summary = json.load(open(os.path.join(full, "summary.json")))
+    assert summary["physics"] == "mujoco"
