@@ -3,6 +3,8 @@
     python -m experiments.bench                       # the default grid (tens of minutes on 2 CPU cores)
     python -m experiments.bench --envs pendulum --seeds 1,8 --repeats 5
     python -m experiments.bench --quick               # pendulum only, 1 and 8 seeds
+    python -m experiments.bench --envs hopper,halfcheetah --physics mjx,mujoco --presets paper --seeds 8
+    python -m experiments.bench --env-speed           # env stepping alone: MJX, the C engine, its limits
 
 For every (task, method, preset, seeds) it runs a fresh subprocess (so peak
 memory and compile caches are its own) that measures, in one process:
@@ -85,7 +87,8 @@ def measure_one(spec: dict) -> dict:
 
     rss_base = _rss_mib()
     overrides = dict(spec.get("overrides", {}))
-    cfg = make_config(spec["env"], spec["method"], spec["preset"], overrides=overrides)
+    cfg = make_config(spec["env"], spec["method"], spec["preset"], overrides=overrides,
+                      physics=spec.get("physics", "mjx"))
     env = None
     if spec.get("stock_mjx"):  # MJX's own (scanned) line search instead of our early exit, for before/after
         import envs
@@ -159,6 +162,7 @@ def measure_one(spec: dict) -> dict:
     peak = _peak_rss_mib()
     return {
         **{k: spec[k] for k in ("env", "method", "preset", "seeds")}, "stock_mjx": bool(spec.get("stock_mjx")),
+        "physics": cfg.env.physics,
         "plain_vmap": bool(spec.get("plain_vmap")), "measured": time.strftime("%Y-%m-%d"),
         "backend": jax.default_backend(), "device": str(jax.devices()[0]),
         "cycles": cycles, "steps_per_cycle": cfg.steps_per_cycle, "updates_per_cycle": updates_per_cycle,
@@ -173,19 +177,116 @@ def measure_one(spec: dict) -> dict:
     }
 
 
-def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: int = 3) -> dict:
-    """Env stepping alone: ours (``num_envs`` vmapped, jitted scan with the training wrappers)
-    next to gymnasium's own env (MuJoCo C / NumPy, one env in a Python loop).
+def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int) -> dict:
+    """MuJoCo's C engine stepping ``num_envs`` simulations of the task's gymnasium model outside
+    JAX: the limits the C engine inside the program is measured against, and the mechanisms it
+    could have used. Uniform random controls over ctrlrange, no resets; steps/s (median of repeats).
 
-    MuJoCo tasks are timed twice in this process, with the early-exit line search (our
-    default) and with MJX's stock one (``early_exit_linesearch=False``), and the two
-    trajectories are checked to be identical (see envs/gym_mujoco.py, "Speed")."""
+    * ``raw_loop``: ``mj_step(nstep=frame_skip)`` over one ``MjData`` per env, one Python thread;
+    * ``batch``: ``mujoco.batch.Batch`` (``threads`` threads), one ``step`` call per env step (what
+      ``envs/mujoco_c.py`` uses);
+    * ``rollout``: ``mujoco.rollout.Rollout`` (persistent pool of ``threads``), one call per env step
+      from the state rows (it returns states and sensors only, not the warm start or the derived
+      fields gymnasium's observations read);
+    * ``pool``: one ``MjData`` per env and a Python ``ThreadPoolExecutor`` of ``threads`` (mj_step
+      releases the GIL), the envs split into ``threads`` slices.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    import mujoco
+    import numpy as np
+    from mujoco import batch as mj_batch
+    from mujoco import rollout as mj_rollout
+
+    from envs.gym_mujoco import GYMNASIUM_TASKS
+
+    task_env = GYMNASIUM_TASKS[task]()
+    model, fs = task_env.mj_model, task_env.frame_skip
+    low, high = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+    ctrl = np.random.default_rng(0).uniform(low, high, (steps, num_envs, model.nu))
+
+    def median_rate(run):
+        times = []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            run()
+            times.append(time.perf_counter() - t)
+        return num_envs * steps / statistics.median(times)
+
+    datas = [mujoco.MjData(model) for _ in range(num_envs)]
+
+    def raw():
+        for d in datas:
+            mujoco.mj_resetData(model, d)
+        for k in range(steps):
+            for d, u in zip(datas, ctrl[k]):
+                d.ctrl[:] = u
+                mujoco.mj_step(model, d, nstep=fs)
+
+    b = mj_batch.Batch(model, num_envs, nthread=min(threads, num_envs))
+    for name in task_env.derived_fields:
+        b.bind(name)
+    b_ctrl = b.bind("ctrl")
+
+    def batch():
+        b.reset()
+        for k in range(steps):
+            b_ctrl[:] = ctrl[k]
+            b.step(nstep=fs)
+
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    roll_datas = [mujoco.MjData(model) for _ in range(max(1, threads))]
+    state0 = np.zeros((num_envs, mujoco.mj_stateSize(model, spec)))
+    mujoco.mj_getState(model, datas[0], state0[0], spec)
+    state0[:] = state0[0]
+
+    def roll(pool):
+        state = state0.copy()
+        for k in range(steps):
+            out, _ = pool.rollout(model, roll_datas, state, np.repeat(ctrl[k][:, None], fs, 1), nstep=fs)
+            state = out[:, -1]
+
+    def rollout():
+        with mj_rollout.Rollout(nthread=threads) as pool:
+            roll(pool)
+
+    slices = np.array_split(np.arange(num_envs), max(1, threads))
+
+    def pooled():
+        for d in datas:
+            mujoco.mj_resetData(model, d)
+
+        def part(ids, k):
+            for i in ids:
+                datas[i].ctrl[:] = ctrl[k, i]
+                mujoco.mj_step(model, datas[i], nstep=fs)
+
+        with ThreadPoolExecutor(len(slices)) as ex:
+            for k in range(steps):
+                list(ex.map(part, slices, [k] * len(slices)))
+
+    return {"raw_loop_steps_per_s": median_rate(raw), "batch_steps_per_s": median_rate(batch),
+            "rollout_steps_per_s": median_rate(rollout), "pool_steps_per_s": median_rate(pooled),
+            "c_threads": threads}
+
+
+def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: int = 3,
+                      stock_mjx: bool = False) -> dict:
+    """Env stepping alone, ``num_envs`` envs: our task through the compiled program (a jitted scan,
+    vmapped, with the training wrappers, auto-reset included) on each engine: MJX and MuJoCo's C
+    engine through the host callback (``physics='mujoco'``); for the MuJoCo tasks the C engine's
+    loops outside JAX (``_c_loops``); and gymnasium's own env stepped one at a time in a Python loop.
+
+    With ``stock_mjx``, MJX is timed a second time with its stock line search
+    (``early_exit_linesearch=False``) and the two trajectories are checked to be identical
+    (see envs/gym_mujoco.py, "Speed")."""
     import gymnasium
     import jax
     import jax.numpy as jnp
     import numpy as np
 
     import envs
+    from envs.mujoco_c import default_threads
 
     def time_ours(**overrides):
         env = envs.make(task, **overrides)
@@ -198,8 +299,8 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
 
             return jax.lax.scan(step, state, jax.random.split(key, steps))
 
-        state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
         t = time.perf_counter()
+        state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
         fn = jax.jit(run).lower(state, jax.random.PRNGKey(1)).compile()
         compile_s = time.perf_counter() - t
         seconds, times = _timed(fn, (state, jax.random.PRNGKey(1)), repeats)
@@ -210,10 +311,17 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
     out = {"task": task, "num_envs": num_envs, "steps": steps, "compile_s": compile_s,
            "ours_steps_per_s": ours, "ours_times": ours_times}
     if task != "pendulum":
-        stock, stock_times, stock_compile_s, stock_traj = time_ours(early_exit_linesearch=False)
-        out.update(stock_steps_per_s=stock, stock_times=stock_times, stock_compile_s=stock_compile_s,
-                   early_exit_speedup=ours / stock,
-                   identical_to_stock=all(np.array_equal(a, b) for a, b in zip(traj, stock_traj)))
+        threads = default_threads()
+        c, c_times, c_compile_s, _ = time_ours(physics="mujoco")
+        out.update(c_steps_per_s=c, c_times=c_times, c_compile_s=c_compile_s, c_over_mjx=c / ours,
+                   **_c_loops(task, num_envs, steps, threads, repeats))
+        out["c_over_raw_loop"] = c / out["raw_loop_steps_per_s"]
+        out["c_over_batch"] = c / out["batch_steps_per_s"]
+        if stock_mjx:
+            stock, stock_times, stock_compile_s, stock_traj = time_ours(early_exit_linesearch=False)
+            out.update(stock_steps_per_s=stock, stock_times=stock_times, stock_compile_s=stock_compile_s,
+                       early_exit_speedup=ours / stock,
+                       identical_to_stock=all(np.array_equal(a, b) for a, b in zip(traj, stock_traj)))
 
     genv = gymnasium.make(envs.get_spec(task).gym_id)
     genv.reset(seed=0)
@@ -229,27 +337,55 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
     return out
 
 
+ENV_SPEED_TARGETS = {"c_over_mjx": {"hopper": 5.0, "halfcheetah": 5.0, "inverted_double_pendulum": 1.5},
+                     "c_over_raw_loop": 0.8}
+
+
 def env_speed_markdown(results: list[dict], meta: dict) -> str:
     def f(r, k, fmt="{:,.0f}"):
         return fmt.format(r[k]) if k in r else "–"
 
+    def verdict(r):
+        want = ENV_SPEED_TARGETS["c_over_mjx"].get(r["task"])
+        if "c_over_mjx" not in r:
+            return "–"
+        ok = [r["c_over_raw_loop"] >= ENV_SPEED_TARGETS["c_over_raw_loop"]] + (
+            [r["c_over_mjx"] >= want] if want else [])
+        return "yes" if all(ok) else "NO"
+
+    n = results[0]["num_envs"]
+    threads = next((r["c_threads"] for r in results if "c_threads" in r), None)
     lines = [
         f"`python -m experiments.bench --env-speed` on {meta['date']} ({meta['machine']}; jax {meta['jax']}, "
         f"backend {meta['backend']}; medians of {meta['repeats']} timed repeats; raw numbers: "
-        f"`{os.path.basename(meta['json'])}`): our tasks, {results[0]['num_envs']} envs vmapped in a jitted scan "
-        f"of {results[0]['steps']:,} uniform-random steps with the training wrappers (auto-reset included), "
-        "with our early-exit line search (the default) and with MJX's stock one, in the same process; "
-        "'identical' says whether the two trajectories (observations, rewards) are bitwise equal. Next to "
-        "them gymnasium's own env (MuJoCo C, or NumPy for Pendulum) stepped one at a time in a Python loop.", "",
-        f"| task | ours, {results[0]['num_envs']} envs, steps/s | stock MJX line search, steps/s | speedup | "
-        "identical | gymnasium, 1 env, steps/s | compile s |",
-        "|---|---|---|---|---|---|---|",
+        f"`{os.path.basename(meta['json'])}`), all in one process per run: our tasks, {n} envs vmapped in a "
+        f"jitted scan of {results[0]['steps']:,} uniform-random steps with the training wrappers (auto-reset "
+        "included), on MJX and on MuJoCo's C engine through the host callback (`--physics=mujoco`"
+        + (f", {threads} threads" if threads else "") + "). Then the C engine outside JAX on the same model, "
+        f"{n} simulations, random controls, no resets: a plain loop of `mj_step` over one `MjData` each "
+        "(one thread: the 'raw loop'), `mujoco.batch.Batch` (what the callback uses), `mujoco.rollout` and "
+        "our own `MjData` loop on a Python thread pool (both with the same threads). Last, gymnasium's own "
+        "env stepped one at a time in a Python loop. Targets: C engine >= "
+        f"{ENV_SPEED_TARGETS['c_over_raw_loop']}x the raw loop on every task, and >= 5x MJX on Hopper and "
+        "HalfCheetah, >= 1.5x on IDP.", "",
+        f"| task | MJX, steps/s | C engine in the program, steps/s | C / MJX | raw C loop | C / raw loop | "
+        "batch outside JAX | rollout module | own thread pool | targets met | gymnasium, 1 env | "
+        "compile s, MJX / C |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:
-        ident = {True: "yes", False: "NO"}.get(r.get("identical_to_stock"), "–")
-        lines.append(f"| {r['task']} | {f(r, 'ours_steps_per_s')} | {f(r, 'stock_steps_per_s')} | "
-                     f"{f(r, 'early_exit_speedup', '{:.2f}x')} | {ident} | {f(r, 'gymnasium_steps_per_s')} | "
-                     f"{f(r, 'compile_s', '{:.1f}')} |")
+        lines.append(
+            f"| {r['task']} | {f(r, 'ours_steps_per_s')} | {f(r, 'c_steps_per_s')} | {f(r, 'c_over_mjx', '{:.2f}x')} | "
+            f"{f(r, 'raw_loop_steps_per_s')} | {f(r, 'c_over_raw_loop', '{:.2f}x')} | {f(r, 'batch_steps_per_s')} | "
+            f"{f(r, 'rollout_steps_per_s')} | {f(r, 'pool_steps_per_s')} | {verdict(r)} | "
+            f"{f(r, 'gymnasium_steps_per_s')} | {f(r, 'compile_s', '{:.1f}')} / {f(r, 'c_compile_s', '{:.1f}')} |")
+    if any("stock_steps_per_s" in r for r in results):
+        lines += ["", "| task | stock MJX line search, steps/s | early-exit speedup | identical |", "|---|---|---|---|"]
+        for r in results:
+            if "stock_steps_per_s" in r:
+                ident = {True: "yes", False: "NO"}.get(r.get("identical_to_stock"), "–")
+                lines.append(f"| {r['task']} | {f(r, 'stock_steps_per_s')} | {f(r, 'early_exit_speedup', '{:.2f}x')} "
+                             f"| {ident} |")
     return "\n".join(lines)
 
 
@@ -274,8 +410,8 @@ def _date(r: dict) -> str:
 
 
 def _variant(r: dict) -> str:
-    return (" (stock MJX line search)" if r.get("stock_mjx") else "") + (
-        " (plain vmap)" if r.get("plain_vmap") else "")
+    return (" (MuJoCo C)" if r.get("physics") == "mujoco" else "") + (
+        " (stock MJX line search)" if r.get("stock_mjx") else "") + (" (plain vmap)" if r.get("plain_vmap") else "")
 
 
 def _row_md(r: dict, scaling: float | None) -> str:
@@ -321,7 +457,39 @@ def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
     if len(dates) > 1:
         lines += ["", "Rows of different dates may have run under different machine load: compare ratios "
                   "within a date; scaling is computed within a date."]
+    lines += engines_markdown(rows)
     write_section(path, "training", "\n".join(lines))
+
+
+ENGINE_TARGETS = {"speedup": 4.0, "speedup_tasks": ("hopper", "halfcheetah"), "updates_share": 0.85,
+                  "c_compile_s": 30.0}
+
+
+def engines_markdown(rows: list[dict]) -> list[str]:
+    """The two engines side by side, from rows measured on the same date: training throughput with
+    MuJoCo's C engine over MJX's; for the C rows, the share of full training time that the DDPG updates
+    alone take (1 = physics and bookkeeping cost nothing on top of the updates) and the cold compile."""
+    key = lambda r: (r["env"], r["method"], r["preset"], r["seeds"], _date(r))
+    mjx = {key(r): r for r in rows if r.get("physics", "mjx") == "mjx" and not r.get("stock_mjx")
+           and not r.get("plain_vmap") and r["env"] != "pendulum"}
+    c_rows = [r for r in rows if r.get("physics") == "mujoco"]
+    if not c_rows:
+        return []
+    t = ENGINE_TARGETS
+    out = ["", f"Engines side by side (rows of the same date): C engine total steps/s over MJX's (target >= "
+           f"{t['speedup']:.0f}x on {' and '.join(t['speedup_tasks'])} at 8 seeds, paper preset); updates share "
+           f"= updates-alone time / full training time (target >= {t['updates_share']} for the modern preset at 1 "
+           f"seed on Hopper); the C engine's cold compile (target <= {t['c_compile_s']:.0f} s).", "",
+           "| task | method | preset | seeds | measured | MJX steps/s | C steps/s | C / MJX | updates share | "
+           "compile s, MJX / C |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in sorted(c_rows, key=lambda r: (r["env"], r["preset"], r["method"], r["seeds"])):
+        m = mjx.get(key(r))
+        ratio = f"{r['steps_per_s_total'] / m['steps_per_s_total']:.2f}x" if m else "–"
+        out.append(f"| {r['env']} | {r['method']} | {r['preset']} | {r['seeds']} | {_date(r)} | "
+                   f"{m and format(m['steps_per_s_total'], ',.0f') or '–'} | {r['steps_per_s_total']:,.0f} | {ratio} | "
+                   f"{r['updates_s'] / r['full_s']:.2f} | {m and format(m['compile_s'], '.1f') or '–'} / "
+                   f"{r['compile_s']:.1f} |")
+    return out
 
 
 def _cold_compiles() -> None:
@@ -354,7 +522,11 @@ def main(argv: list[str] | None = None) -> int:
                         "dominates there)")
     p.add_argument("--stock-mjx", action="store_true",
                    help="MuJoCo tasks with MJX's stock line search (early_exit_linesearch=False): the 'before' "
-                        "rows of the line-search change, kept next to the default rows")
+                        "rows of the line-search change, kept next to the default rows (with --env-speed: an "
+                        "extra column)")
+    p.add_argument("--physics", default="mjx",
+                   help="comma-separated engines of the training rows' MuJoCo tasks: mjx (default), mujoco, "
+                        "or mjx,mujoco for both side by side (pendulum rows are JAX either way)")
     p.add_argument("--plain-vmap", action="store_true",
                    help="vmap the seeds without naming the axis: every episode-start branch runs at every step "
                         "(the 'before' rows of that change, kept next to the default rows)")
@@ -385,6 +557,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    try:
+        physics = parse_list(args.physics, envs.PHYSICS, "physics")
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     seeds = args.seeds.split(",")
     if not all(s.strip().isdigit() and int(s) > 0 for s in seeds):
         print(f"error: --seeds must be comma-separated positive integers, got {args.seeds!r}", file=sys.stderr)
@@ -404,7 +581,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.env_speed:
         results = []
         for task in tasks:
-            results.append(measure_env_speed(task, num_envs=args.num_envs, repeats=args.repeats))
+            results.append(measure_env_speed(task, num_envs=args.num_envs, repeats=args.repeats,
+                                             stock_mjx=args.stock_mjx))
             print(env_speed_markdown(results, meta).splitlines()[-1], flush=True)
             reporting.write_json_atomic(json_path, {"meta": meta, "env_speed": results})
             write_section(args.out, "env-speed", env_speed_markdown(results, meta))
@@ -413,9 +591,9 @@ def main(argv: list[str] | None = None) -> int:
         tasks, args.seeds = ["pendulum"], "1,8"
     specs = [{"env": e, "method": m, "preset": pr, "seeds": int(s), "repeats": args.repeats,
               "target_steps": args.target_steps or (3000 if e == "pendulum" else 600),
-              "stock_mjx": args.stock_mjx and e != "pendulum", "plain_vmap": args.plain_vmap}
-             for e in tasks for m in args.methods.split(",") for pr in args.presets.split(",")
-             for s in args.seeds.split(",")]
+              "stock_mjx": args.stock_mjx and e != "pendulum", "plain_vmap": args.plain_vmap, "physics": ph}
+             for e in tasks for ph in (["mjx"] if e == "pendulum" else physics)
+             for m in args.methods.split(",") for pr in args.presets.split(",") for s in args.seeds.split(",")]
     rows, failed = [], []
     if args.append and os.path.exists(json_path):
         with open(json_path) as f:
