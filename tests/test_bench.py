@@ -29,19 +29,40 @@ def test_seed_scaling_within_one_date_and_variant():
     assert id(rows[2]) not in scaling
 
 
-def test_env_speed_markdown_flags_a_physics_difference():
+def test_env_speed_markdown_has_both_engines_the_limits_and_the_verdicts():
     meta = {"date": "d", "machine": "m", "jax": "j", "backend": "cpu", "repeats": 3, "json": "x.json"}
+    c = {"num_envs": 8, "steps": 1000, "c_threads": 2, "rollout_steps_per_s": 9000.0, "pool_steps_per_s": 8000.0}
     res = [{"task": "pendulum", "num_envs": 8, "steps": 1000, "compile_s": 0.5, "ours_steps_per_s": 1e6,
             "gymnasium_steps_per_s": 5e4},
-           {"task": "hopper", "num_envs": 8, "steps": 1000, "compile_s": 30.0, "ours_steps_per_s": 1700.0,
-            "stock_steps_per_s": 850.0, "early_exit_speedup": 2.0, "identical_to_stock": False,
-            "gymnasium_steps_per_s": 8300.0}]
+           {"task": "hopper", **c, "compile_s": 30.0, "ours_steps_per_s": 2000.0, "c_steps_per_s": 12000.0,
+            "c_over_mjx": 6.0, "raw_loop_steps_per_s": 13000.0, "c_over_raw_loop": 12000 / 13000,
+            "batch_steps_per_s": 20000.0, "c_compile_s": 1.5, "gymnasium_steps_per_s": 8300.0,
+            "c_overhead_us_per_step": 266.7},
+           {"task": "inverted_double_pendulum", **c, "compile_s": 20.0, "ours_steps_per_s": 10000.0,
+            "c_steps_per_s": 12000.0, "c_over_mjx": 1.2, "raw_loop_steps_per_s": 13000.0,
+            "c_over_raw_loop": 12000 / 13000, "batch_steps_per_s": 20000.0, "c_compile_s": 1.5,
+            "gymnasium_steps_per_s": 8300.0, "stock_steps_per_s": 5000.0, "early_exit_speedup": 2.0,
+            "identical_to_stock": False}]
     md = bench.env_speed_markdown(res, meta)
-    assert "| hopper | 1,700 | 850 | 2.00x | NO | 8,300 | 30.0 |" in md
-    assert "| pendulum | 1,000,000 | – | – | – | 50,000 | 0.5 |" in md
-    assert "| task | ours, 8 envs, steps/s |" in md
-    md512 = bench.env_speed_markdown([dict(r, num_envs=512) for r in res], meta)
-    assert "| task | ours, 512 envs, steps/s |" in md512 and "512 envs vmapped" in md512
+    assert "| hopper | 2,000 | 12,000 | 6.00x | 13,000 | 0.92x | 20,000 | 267 | 9,000 | 8,000 | yes | 8,300 | 30.0 / 1.5 |" in md
+    # IDP misses its 1.5x-over-MJX target
+    assert "| inverted_double_pendulum | 10,000 | 12,000 | 1.20x | 13,000 | 0.92x | 20,000 | – | 9,000 | 8,000 | NO |" in md
+    assert "| pendulum | 1,000,000 | – | – | – | – | – | – | – | – | – | 50,000 | 0.5 / – |" in md
+    assert "2 threads" in md and "8 envs vmapped" in md
+    assert "| inverted_double_pendulum | 5,000 | 2.00x | NO |" in md  # the stock line search column
+
+
+def test_engines_table_pairs_rows_of_one_date():
+    row = lambda physics, sps, date="2026-12-01", **kw: {
+        "env": "hopper", "method": "meta", "preset": "paper", "seeds": 8, "measured": date, "physics": physics,
+        "steps_per_s_total": sps, "compile_s": 20.0 if physics == "mujoco" else 400.0, "full_s": 10.0,
+        "updates_s": 4.0, **kw}
+    rows = [row("mjx", 500.0), row("mujoco", 3000.0), row("mujoco", 2500.0, date="2026-12-02")]
+    md = "\n".join(bench.engines_markdown(rows))
+    assert "| hopper | meta | paper | 8 | 2026-12-01 | 500 | 3,000 | 6.00x | 0.40 | 400.0 / 20.0 |" in md
+    assert "| hopper | meta | paper | 8 | 2026-12-02 | – | 2,500 | – | 0.40 | – / 20.0 |" in md
+    assert bench.engines_markdown([row("mjx", 500.0)]) == []
+    assert bench._variant(row("mujoco", 1.0)) == " (MuJoCo C)"
 
 
 def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
@@ -54,7 +75,8 @@ def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
                           (["--presets", "fast"], "unknown preset 'fast'; valid: paper, modern"),
                           (["--seeds", "1,x"], "--seeds must be comma-separated positive integers"),
                           (["--seeds", "0"], "--seeds must be comma-separated positive integers"),
-                          (["--target-steps", "0"], "--target-steps must be positive")):
+                          (["--target-steps", "0"], "--target-steps must be positive"),
+                          (["--physics", "mjx,bullet"], "unknown physics 'bullet'; valid: mjx, mujoco")):
         assert bench.main([*argv, "--out", out, "--json", str(tmp_path / "b.json")]) == 2, argv
         assert message in capsys.readouterr().err
     assert not (tmp_path / "B.md").exists() and not (tmp_path / "b.json").exists()

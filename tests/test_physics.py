@@ -266,3 +266,22 @@ def test_c_engine_run_resumes_bit_for_bit_after_sigkill(tmp_path):
     _assert_same_run(full, out)
     summary = json.load(open(os.path.join(full, "summary.json")))
     assert summary["physics"] == "mujoco"
+
+
+@pytest.mark.parametrize("task", list(TASKS))
+def test_every_mujoco_task_trains_a_tiny_meta_run_on_the_c_engine(task):
+    """A smoke test per task: one compiled program (seconds to compile with the C engine), finite state."""
+    import chex
+
+    from metapg_jax.config import make_config
+    from metapg_jax.train import make_train, seed_keys, vmap_seeds
+
+    cfg = make_config(task, "meta", steps=300, physics="mujoco", overrides={
+        "run.eval_every": 300, "run.eval_episodes": 2, "ddpg.hidden": "16,16", "ddpg.batch_size": 16,
+        "run.train_steps": 5, "meta.hidden": "16,16", "meta.explore_steps": 50, "meta.eval_steps": 100,
+        "meta.teacher_steps": 1, "meta.visit_samples": 16, "env.episode_length": 50})
+    state, metrics = jax.jit(vmap_seeds(make_train(cfg).train))(seed_keys(0, 2))
+    chex.assert_tree_all_finite(state.student)
+    assert np.isfinite(np.asarray(metrics["eval_return"])).all()
+    assert np.asarray(metrics["cycle"]["finite"]).all()
+    assert int(state.env_steps[0]) == 300 and int(state.updates[0]) == 10
