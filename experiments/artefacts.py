@@ -444,8 +444,15 @@ def _budget_text(task: str, budgets: dict) -> str:
     return text
 
 
+def engines_text(results: Iterable["RunResult"]) -> str:
+    """How the stored MuJoCo cells were stepped: 'MJX', "MuJoCo's C engine" or both (pendulum is JAX)."""
+    physics = {r.config["env"].get("physics", "mjx") for r in results if r.task != "pendulum"}
+    names = {"mjx": "MJX", "mujoco": "MuJoCo's C engine"}
+    return " and ".join(names[p] for p in sorted(physics)) if physics else "MJX"
+
+
 def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str,
-                 build_commit: str | None = None) -> list[str]:
+                 build_commit: str | None = None, engines: str = "MJX") -> list[str]:
     """table2.md, table2.json and table2_per_seed.csv from ``table2_rows``; returns the paths."""
     os.makedirs(out_dir, exist_ok=True)
     names = [METHOD_NAMES.get(m, m) for m in methods]
@@ -456,7 +463,7 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     md = [f"# Table 2: final evaluation return ({preset} preset)", "",
           f"Rows: tasks; columns: methods, mean ± std over the seeds run here, next to the paper's Table 2 "
           f"(Meta / DDPG; {PAPER_SEEDS} seeds, gym v1 tasks, so not directly comparable: our tasks are gymnasium "
-          f"v5 models on MJX). \"not run\": no finished run is stored for that cell (nothing is estimated); "
+          f"v5 models on {engines}). \"not run\": no finished run is stored for that cell (nothing is estimated); "
           f"\"reduced\" in the budget column: fewer env steps per seed than the paper's budget."
           + protocol, "",
           f"- {FINAL_DEFINITION}.", f"- {stats_definition(baseline)}.", "",
@@ -881,7 +888,7 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
         build.update(extra_provenance)
     footer = provenance_footer(build, results.values())
     rows = table2_rows(results, tasks, methods, baseline)
-    files = write_table2(rows, methods, out_dir, footer, preset, build["commit"])
+    files = write_table2(rows, methods, out_dir, footer, preset, build["commit"], engines_text(results.values()))
     files += write_curves(results, tasks, methods, out_dir, build, preset)
     files += write_steps_to_threshold(steps_to_threshold_rows(results, tasks, methods, baseline), out_dir, footer, preset,
                                       build["commit"])
