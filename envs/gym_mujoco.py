@@ -1,4 +1,5 @@
-"""MJX ports of gymnasium's v5 MuJoCo tasks behind the Brax ``Env`` interface.
+"""gymnasium's v5 MuJoCo tasks behind the Brax ``Env`` interface, on MJX (and, through
+``envs/mujoco_c.py``, on MuJoCo's C engine: the task math here serves both).
 
 Reference: the installed gymnasium package (1.x), files
 ``gymnasium/envs/mujoco/{inverted_pendulum,inverted_double_pendulum,hopper,

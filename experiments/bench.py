@@ -614,8 +614,8 @@ def main(argv: list[str] | None = None) -> int:
             failed.append(label)
             continue
         r = json.loads(line[0][len("BENCH_RESULT "):])
-        key = lambda x: (x["env"], x["method"], x["preset"], x["seeds"], _variant(x))
-        rows = [x for x in rows if key(x) != key(r)] + [r]  # a re-measured configuration replaces the old row
+        key = lambda x: (x["env"], x["method"], x["preset"], x["seeds"], _variant(x), _date(x))
+        rows = [x for x in rows if key(x) != key(r)] + [r]  # re-measured on the same date: replaces the old row
         print(f"  compile {r['compile_s']:.1f} s | {r['steps_per_s_total']:,.0f} steps/s total | env alone "
               f"{r['env_alone_steps_per_s']:,.0f} | updates alone {r['updates_alone_per_s']:,.0f}/s | overhead "
               f"{r['overhead_ratio']:.2f} | eval {r['eval_s']:.2f} s | RSS +{r['rss_growth_mib']:,.0f} MiB "

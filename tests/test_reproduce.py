@@ -471,3 +471,19 @@ def test_a_visitation_figure_per_task_with_both_samples(tmp_path):
     assert (tmp_path / "all" / "visitation_reacher.png").exists()
     with pytest.raises(SystemExit):
         artefacts.build_parser().parse_args(["--visitation-task", "cartpole"])
+
+
+def test_reproduce_on_the_c_engine_keeps_its_own_folders(tmp_path, capsys, monkeypatch):
+    """--physics=mujoco: MuJoCo cells get --physics=mujoco (pendulum, a JAX task, does not), and the grid goes
+    to runs/reproduce-mujoco and results/mujoco unless folders are given; brax models are refused."""
+    monkeypatch.chdir(tmp_path)
+    assert reproduce.main(["--tasks", "pendulum,hopper", "--methods", "meta-independent", "--physics", "mujoco",
+                           "--dry-run"]) == 0
+    out = capsys.readouterr().out
+    hopper = next(line for line in out.splitlines() if "paper/hopper/meta-independent" in line)
+    pendulum = next(line for line in out.splitlines() if "paper/pendulum/meta-independent" in line)
+    assert "--physics=mujoco" in hopper and "--out runs/reproduce-mujoco/paper/hopper/meta-independent" in hopper
+    assert "--physics" not in pendulum
+    assert not (tmp_path / "runs").exists()
+    assert reproduce.main(["--tasks", "hopper", "--physics", "mujoco", "--source", "brax", "--dry-run"]) == 2
+    assert "--physics=mujoco steps gymnasium's models" in capsys.readouterr().err
