@@ -9,7 +9,7 @@ from metapg_jax import config as config_lib
 from metapg_jax.config import make_config
 
 
-def tiny_config(method="ddpg", steps=600, eval_every=300, **overrides):
+def tiny_config(method="ddpg", steps=600, eval_every=300, env="pendulum", physics="mjx", **overrides):
     base = {
         "run.eval_every": eval_every, "run.eval_episodes": 2, "ddpg.hidden": "16,16",
         "ddpg.batch_size": 16, "run.train_steps": 5, "meta.hidden": "16,16",
@@ -17,7 +17,7 @@ def tiny_config(method="ddpg", steps=600, eval_every=300, **overrides):
         "run.rollout_steps": 50, "env.episode_length": 60,
     }
     base.update(overrides)
-    return make_config("pendulum", method, steps=steps, overrides=base)
+    return make_config(env, method, steps=steps, overrides=base, physics=physics)
 
 
 def fabricate_run(path, task, method, values, steps, complete=True, visit_obs=None):

@@ -185,10 +185,11 @@ def test_an_extension_must_change_the_budget_only(tmp_path, capsys):
     assert json.load(open(os.path.join(out, "config.json")))["config"]["run"]["total_steps"] == 600
 
 
-def test_sigkill_then_resume_gives_the_same_result(tmp_path):
+def sigkill_resume_and_compare(tmp_path, args, chunks, resume_args=()):
+    """Runs ``args`` (2 seeds, a checkpoint per chunk) in a subprocess, SIGKILLs it once 2 chunks are in
+    metrics.jsonl, resumes it in another process, and asserts it equals the uninterrupted run."""
     out = str(tmp_path / "killed")
-    steps = ["--steps=2700"]
-    proc = _subprocess(TINY + steps + ["--out", out])
+    proc = _subprocess(args + ["--out", out])
     metrics = os.path.join(out, "metrics.jsonl")
     deadline = time.time() + 300
     while time.time() < deadline:
@@ -200,13 +201,18 @@ def test_sigkill_then_resume_gives_the_same_result(tmp_path):
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     done = Checkpointer(os.path.join(out, "checkpoints")).steps()
-    assert done and done[-1] < 9, done
-    res = _subprocess(["--resume", out, "--quiet", "--no-plot"])
+    assert done and done[-1] < chunks, done
+    res = _subprocess(["--resume", out, "--quiet", "--no-plot", *resume_args])
     _, err = res.communicate(timeout=600)
     assert res.returncode == 0, err[-3000:]
     full = str(tmp_path / "full")
-    assert run.main(TINY + steps + ["--out", full]) == 0
+    assert run.main(args + ["--out", full]) == 0
     _assert_same_run(full, out)
+    return full
+
+
+def test_sigkill_then_resume_gives_the_same_result(tmp_path):
+    sigkill_resume_and_compare(tmp_path, TINY + ["--steps=2700"], chunks=9)
 
 
 @pytest.mark.parametrize("given, expected", [

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import time
 
 import gymnasium
@@ -195,7 +194,8 @@ def test_cli_refuses_bad_physics_before_compiling(argv, message, tmp_path, capsy
     assert time.perf_counter() - t0 < 5  # nothing was traced or compiled
 
 
-# -- training with the C engine: deterministic, chunked == single scan, resume after SIGKILL ------------
+# -- training with the C engine: resume after SIGKILL, a smoke test per task (deterministic and chunked ==
+# single scan: tests/test_train.py) ----------------------------------------------------------------------
 
 TINY_IP = ["--env=inverted_pendulum", "--physics=mujoco", "--method=meta", "--seeds=2", "--quiet", "--no-plot",
            "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
@@ -204,66 +204,11 @@ TINY_IP = ["--env=inverted_pendulum", "--physics=mujoco", "--method=meta", "--se
            "--checkpoint-every=1", "--compile-cache=off"]
 
 
-@pytest.mark.parametrize("method", ["ddpg", "meta"])
-def test_c_engine_training_is_deterministic_and_chunked_equals_single_scan(method):
-    from metapg_jax.config import make_config
-    from metapg_jax.train import make_train, seed_keys, vmap_seeds
-
-    cfg = make_config("inverted_pendulum", method, steps=600, physics="mujoco",
-                      overrides={"run.eval_every": 300, "run.eval_episodes": 2, "ddpg.hidden": "16,16",
-                                 "ddpg.batch_size": 16, "run.train_steps": 5, "meta.hidden": "16,16",
-                                 "meta.explore_steps": 50, "meta.eval_steps": 100, "meta.visit_samples": 64,
-                                 "run.rollout_steps": 50, "env.episode_length": 60})
-    assert cfg.env.physics == "mujoco"
-    trainer = make_train(cfg)
-    assert trainer.env.unwrapped.backend == "mujoco"
-    keys = seed_keys(1, 2)
-    train = jax.jit(vmap_seeds(trainer.train))
-    full_state, full_metrics = train(keys)
-    again_state, again_metrics = train(keys)
-    for a, b in zip(jax.tree.leaves((full_state, full_metrics)), jax.tree.leaves((again_state, again_metrics))):
-        np.testing.assert_array_equal(a, b)
-    state = jax.jit(vmap_seeds(trainer.init))(keys)
-    chunk = jax.jit(vmap_seeds(trainer.train_chunk))
-    returns = []
-    for _ in range(cfg.num_chunks):
-        state, m = chunk(state)
-        returns.append(np.asarray(m["eval_return"]))
-    np.testing.assert_allclose(np.stack(returns, 1), full_metrics["eval_return"], rtol=1e-5, atol=1e-4)
-    assert state.env_state.pipeline_state.dtype == jnp.uint32
-    assert state.env_state.pipeline_state.shape == full_state.env_state.pipeline_state.shape
-    assert np.isfinite(np.asarray(full_metrics["eval_return"])).all()
-    assert int(full_state.env_steps[0]) == 600
-    kernel = np.asarray(jax.tree.leaves(full_state.student.actor)[0])
-    assert not np.array_equal(kernel[0], kernel[1])  # the seeds differ
-
-
 def test_c_engine_run_resumes_bit_for_bit_after_sigkill(tmp_path):
-    from experiments import run
-    from metapg_jax.checkpoint import Checkpointer
-    from tests.test_longrun import _assert_same_run, _subprocess
+    from tests.test_longrun import sigkill_resume_and_compare
 
-    out = str(tmp_path / "killed")
-    steps = ["--steps=2400"]
-    proc = _subprocess(TINY_IP + steps + ["--out", out])
-    metrics = os.path.join(out, "metrics.jsonl")
-    deadline = time.time() + 300
-    while time.time() < deadline:
-        if os.path.exists(metrics) and sum(1 for _ in open(metrics)) >= 4:  # 2 chunks x 2 seeds
-            break
-        if proc.poll() is not None:
-            pytest.fail("the run ended before it could be killed: " + proc.stderr.read()[-2000:])
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    done = Checkpointer(os.path.join(out, "checkpoints")).steps()
-    assert done and done[-1] < 8, done
-    res = _subprocess(["--resume", out, "--quiet", "--no-plot", "--compile-cache=off"])
-    _, err = res.communicate(timeout=600)
-    assert res.returncode == 0, err[-3000:]
-    full = str(tmp_path / "full")
-    assert run.main(TINY_IP + steps + ["--out", full]) == 0
-    _assert_same_run(full, out)
+    full = sigkill_resume_and_compare(tmp_path, TINY_IP + ["--steps=2400"], chunks=8,
+                                      resume_args=["--compile-cache=off"])
     summary = json.load(open(os.path.join(full, "summary.json")))
     assert summary["physics"] == "mujoco"
 
@@ -273,12 +218,10 @@ def test_every_mujoco_task_trains_a_tiny_meta_run_on_the_c_engine(task):
     """A smoke test per task: one compiled program (seconds to compile with the C engine), finite state."""
     import chex
 
-    from metapg_jax.config import make_config
     from metapg_jax.train import make_train, seed_keys, vmap_seeds
+    from tests.helpers import tiny_config
 
-    cfg = make_config(task, "meta", steps=300, physics="mujoco", overrides={
-        "run.eval_every": 300, "run.eval_episodes": 2, "ddpg.hidden": "16,16", "ddpg.batch_size": 16,
-        "run.train_steps": 5, "meta.hidden": "16,16", "meta.explore_steps": 50, "meta.eval_steps": 100,
+    cfg = tiny_config("meta", steps=300, env=task, physics="mujoco", **{
         "meta.teacher_steps": 1, "meta.visit_samples": 16, "env.episode_length": 50})
     state, metrics = jax.jit(vmap_seeds(make_train(cfg).train))(seed_keys(0, 2))
     chex.assert_tree_all_finite(state.student)

@@ -33,11 +33,19 @@ def test_chunk_compiles_once_and_state_stays_finite(method):
 
 
 @pytest.mark.parametrize("method", ["ddpg", "meta"])
-def test_chunked_and_single_scan_agree(method):
-    cfg = tiny_config(method)
+@pytest.mark.parametrize("env, physics", [("pendulum", "mjx"), ("inverted_pendulum", "mujoco")])
+def test_chunked_and_single_scan_agree(method, env, physics):
+    """Also on MuJoCo's C engine (envs/mujoco_c.py), whose state is float64 words and whose steps are
+    host calls: the same key gives the same numbers twice, and chunked equals the single scan."""
+    cfg = tiny_config(method, env=env, physics=physics)
     trainer = make_train(cfg)
+    if physics == "mujoco":
+        assert trainer.env.unwrapped.backend == "mujoco"
     keys = seed_keys(1, 2)
-    full_state, full_metrics = jax.jit(vmap_seeds(trainer.train))(keys)
+    train = jax.jit(vmap_seeds(trainer.train))
+    full_state, full_metrics = train(keys)
+    for a, b in zip(jax.tree.leaves((full_state, full_metrics)), jax.tree.leaves(train(keys))):
+        np.testing.assert_array_equal(a, b)
     state = jax.jit(vmap_seeds(trainer.init))(keys)
     chunk = jax.jit(vmap_seeds(trainer.train_chunk))
     returns = []
@@ -45,7 +53,10 @@ def test_chunked_and_single_scan_agree(method):
         state, m = chunk(state)
         returns.append(np.asarray(m["eval_return"]))
     np.testing.assert_allclose(np.stack(returns, 1), full_metrics["eval_return"], rtol=1e-5, atol=1e-4)
-    jax.tree.map(lambda a, b: np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5),
+    # The two programs round differently (XLA fuses them differently); on IP's float64 physics a last-bit
+    # difference in an action grows over the episode more than on Pendulum: measured 1.4e-5 on one weight.
+    atol = 1e-5 if physics == "mjx" else 1e-4
+    jax.tree.map(lambda a, b: np.testing.assert_allclose(a, b, rtol=1e-5, atol=atol),
                  state.student.actor, full_state.student.actor)
 
 
