@@ -184,7 +184,7 @@ class HostPhysics:
         task's reward components (``metrics``), all of the step; and ``rows`` and ``obs``, the state
         after it. With ``reset_qpos``/``reset_qvel`` (n, nq) / (n, nv), the envs that ended
         (terminated, or ``force_reset``) are reset to them: their ``rows`` and ``obs`` are the reset
-        state's, and ``reset`` marks them.
+        state's.
         """
         rows = np.asarray(rows, np.float64).reshape(-1, self.nstate)
         with self._lock:
@@ -280,7 +280,7 @@ class _Scratch:
         next_obs = self.task._get_obs(np, self.view)
         reward, terminated, metrics = self.task._reward_done(np, before, self.view, self.ctrl, next_obs)
         out = {"next_obs": next_obs, "reward": reward, "terminated": terminated, "metrics": metrics,
-               "obs": next_obs, "reset": np.zeros_like(terminated), "ctrl": self.ctrl.copy()}
+               "obs": next_obs, "ctrl": self.ctrl.copy()}
         if reset_qpos is not None:
             done = terminated | force_reset
             if done.any():
@@ -288,7 +288,7 @@ class _Scratch:
                 self.reset(ids, reset_qpos[ids], reset_qvel[ids])
                 obs = next_obs.copy()
                 obs[ids] = self.obs()[ids]  # (all rows at once: cheaper than gathering the fields)
-                out.update(obs=obs, reset=done)
+                out["obs"] = obs
         return out
 
 
@@ -389,8 +389,3 @@ class MujocoCEnv(Env):
         return self._state(jnp.asarray(rows.view(np.uint32).reshape(*lead, -1)),
                            jnp.asarray(obs.astype(np.float32).reshape(*lead, -1)), zero, zero,
                            {k: zero for k in self.host.metric_keys})
-
-    def rows(self, state: State) -> np.ndarray:
-        """The float64 integration state rows of a (batched) State, on the host."""
-        words = np.ascontiguousarray(np.asarray(state.pipeline_state))
-        return words.view(np.float64)
