@@ -223,7 +223,14 @@ class Trainer:
             return state.student, state.explorer, state.updates, {
                 "critic_loss": nan, "actor_loss": nan, "q_mean": nan, "td_loss": nan}
 
-        student, explorer, updates, metrics = jax.lax.cond(self.can_update(state), run, skip, None)
+        # A real conditional (any_over_seeds), not the per-seed select that vmap makes of a batched
+        # predicate: the updates are skipped during warm-up, and the minibatch gathers stay inside the
+        # branch, apart from the buffer write before them. Fused with that write, they made XLA copy the
+        # whole replay buffer at every cycle (the modern preset's one-step cycles ran at half speed).
+        ok = self.can_update(state)
+        student, explorer, updates, metrics = jax.lax.cond(
+            any_over_seeds(ok),
+            lambda _: jax.tree.map(lambda a, b: jnp.where(ok, a, b), run(None), skip(None)), skip, None)
         return state.replace(student=student, explorer=explorer, updates=updates), metrics
 
     def cycle(self, state: TrainState) -> tuple[TrainState, dict]:
