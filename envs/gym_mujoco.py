@@ -11,7 +11,7 @@ See /work/shared/DESIGN.md ("Environments") for why we do not use brax's own
 versions of these tasks (different models, time steps and rewards); those
 remain available through ``BRAX_TASKS`` with the same contract.
 
-Deviation from the paper (README "Deviations from the paper"): the paper ran
+Deviation from the paper (docs/algorithm.md, "Deviations from the paper"): the paper ran
 gym's v1 tasks on MuJoCo 1.31, which cannot run here. v5 differs in details:
 IDP's observation has 9 entries (v1: 11), no alive bonus on the terminal step,
 Reacher's reward uses the post-step distance.

@@ -39,7 +39,7 @@ gymnasium's ``reset``). Reset noise is drawn in the program with JAX's PRNG
 
 The C engine runs on the host CPU even when JAX runs on a GPU: every step
 then crosses between device and host. MJX is the engine that scales on
-accelerators; this one is for CPUs (measured speeds: README, "Physics engines").
+accelerators; this one is for CPUs (measured speeds: docs/performance.md, "Physics engines").
 """
 
 from __future__ import annotations

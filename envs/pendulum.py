@@ -5,7 +5,7 @@ one documented interface change: the action is in the normalised box [-1, 1]
 and is scaled to the torque bound (``max_torque`` = 2), so every task of this
 project takes actions in [-1, 1]. Pendulum never terminates; the 200-step time
 limit is added by the registry's wrappers. The paper used ``Pendulum-v0``
-(same dynamics; README "Deviations from the paper").
+(same dynamics; docs/algorithm.md, "Deviations from the paper").
 """
 
 from __future__ import annotations

@@ -25,8 +25,8 @@ memory and compile caches are its own) that measures, in one process:
   replay buffers' own bytes.
 
 The **seed-scaling ratio** (total throughput at 8 seeds / at 1 seed) is
-computed across rows. Results go to ``BENCHMARKS.md`` (table) and a JSON file
-(raw numbers, every repeat). Timings on shared machines vary: compare ratios
+computed across rows. Results go to ``results/benchmarks/BENCHMARKS.md`` (tables) and a
+JSON file beside it (raw numbers, every repeat). Timings on shared machines vary: compare ratios
 measured in one run, never single timings across runs.
 """
 
@@ -41,6 +41,7 @@ import subprocess
 import sys
 import time
 
+BENCH_DIR = "results/benchmarks"  # where the records go by default (relative to the repository root)
 TARGETS = {"overhead": 1.2, "scaling_8": 2.5, "compile_s": 60.0, "rss_over_buffer": 2.0}
 
 
@@ -517,9 +518,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--target-steps", type=int, default=None,
                    help="env steps per seed per timed call (default: 3000 pendulum, 600 MuJoCo tasks)")
     p.add_argument("--quick", action="store_true", help="pendulum only, seeds 1 and 8")
-    p.add_argument("--out", default="BENCHMARKS.md")
+    p.add_argument("--out", default=os.path.join(BENCH_DIR, "BENCHMARKS.md"))
     p.add_argument("--json", default=None,
-                   help="raw numbers (default benchmarks.json; benchmarks_env_speed.json with --env-speed)")
+                   help=f"raw numbers (default {BENCH_DIR}/benchmarks.json; {BENCH_DIR}/benchmarks_env_speed.json "
+                        "with --env-speed)")
     p.add_argument("--env-speed", action="store_true",
                    help="only environment stepping: ours (--num-envs vmapped envs) vs gymnasium's own")
     p.add_argument("--num-envs", type=int, default=8,
@@ -579,7 +581,8 @@ def main(argv: list[str] | None = None) -> int:
     from metapg_jax import reporting
 
     _cold_compiles()
-    json_path = args.json or ("benchmarks_env_speed.json" if args.env_speed else "benchmarks.json")
+    json_path = args.json or os.path.join(BENCH_DIR, "benchmarks_env_speed.json" if args.env_speed
+                                          else "benchmarks.json")
     meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
             "repeats": args.repeats, "json": json_path}

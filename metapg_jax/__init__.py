@@ -6,14 +6,14 @@ import os as _os
 def _default_to_deterministic_gpu_ops() -> None:
     """Add --xla_gpu_deterministic_ops=true to XLA_FLAGS unless XLA_FLAGS already sets that flag.
 
-    A resumed run must equal the uninterrupted one bit for bit (README "Long runs"). On a GPU, XLA's
+    A resumed run must equal the uninterrupted one bit for bit (docs/long-runs.md). On a GPU, XLA's
     default flags let two processes round the same program differently (measured on an H200: a run
     killed and resumed in a new process differed from the uninterrupted run from its first metrics
-    row on; with this flag the two were equal; benchmarks_gpu/README.md). XLA reads XLA_FLAGS
+    row on; with this flag the two were equal; results/benchmarks/gpu/README.md). XLA reads XLA_FLAGS
     when the first computation runs, so this must happen before that: importing metapg_jax first
     suffices. CPU-only jaxlib accepts and ignores the flag. It costs speed on a GPU (H200: Pendulum
     Meta at 64 seeds trained at 0.78x, MJX HalfCheetah stepping at 512 envs ran at 0.93x;
-    benchmarks_gpu/README.md, fourth check). Opt out with XLA_FLAGS=--xla_gpu_deterministic_ops=false
+    results/benchmarks/gpu/README.md, fourth check). Opt out with XLA_FLAGS=--xla_gpu_deterministic_ops=false
     where bit-for-bit resume does not matter.
     """
     flags = _os.environ.get("XLA_FLAGS", "")

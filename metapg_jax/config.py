@@ -18,7 +18,7 @@ Presets:
   256-256 teacher without LayerNorm, one student update per stored step and
   one look-ahead update per D0 step, no warm-up.
 
-Deviations from the paper that live here (README "Deviations from the paper"):
+Deviations from the paper that live here (docs/algorithm.md, "Deviations from the paper"):
 DDPG's 100 rollout steps per cycle (the paper's Table 1: 200), the variance
 teacher's state-dependent log-std by default, the look-ahead's update count.
 """

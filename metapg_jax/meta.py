@@ -19,7 +19,7 @@ Per seed, per cycle (../shared/DESIGN.md steps 1-8; defaults in brackets):
    extra samples) or a fresh rollout D2 of the updated student
    (``baseline='fresh'``; D2 is stored and counted like D1).
 
-Deviations from the paper's Algorithm 1 (also in the README):
+Deviations from the paper's Algorithm 1 (also in docs/algorithm.md):
 * Lines 2-3 (an initial D1 from pi to estimate R_hat(pi) and seed the buffer)
   are folded into the first cycle: the buffer starts empty and the first
   cycle's meta reward is 0, so every stored step belongs to a cycle and
@@ -28,7 +28,7 @@ Deviations from the paper's Algorithm 1 (also in the README):
   not a new estimate of the updated student (the paper says "compute the new
   R_hat(pi)" without saying how; a fresh estimate costs samples).
 
-Our readings where the paper gives no number or procedure (also in the README):
+Our readings where the paper gives no number or procedure (also in docs/algorithm.md):
 * The look-ahead runs ``train_steps`` updates (50; 500 on IP/HalfCheetah), the
   paper's "one or a small number of steps" read as the student's own count.
 * R_hat(pi') is one first-episode return per eval env, truncated at

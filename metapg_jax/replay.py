@@ -5,7 +5,7 @@ capacity axis; ``add`` writes a batch with a scatter at ``(ptr + i) % capacity``
 (in place under ``jit``/``scan``, never a copy of the buffer), ``sample`` draws
 indices uniformly with replacement from the filled part.
 The choice of an own ring buffer over flashbax is measured and explained in
-the README ("Replay buffer").
+docs/performance.md ("Replay buffer").
 """
 
 from __future__ import annotations

@@ -63,7 +63,7 @@ def setup():
 @pytest.fixture(autouse=True)
 def _numpy_precision_matmuls():
     """The hand computations are float32 NumPy; a GPU's default matmul precision (TF32 class) put the
-    losses 5.4e-5 and 3.4e-4 relative away from them (measured on an H200; README "Backend"). A no-op on CPU."""
+    losses 5.4e-5 and 3.4e-4 relative away from them (measured on an H200; docs/gpu.md). A no-op on CPU."""
     with jax.default_matmul_precision("highest"):
         yield
 

@@ -110,7 +110,7 @@ def _probe(name, early_exit_linesearch=True):
     qpos_x = np.stack([gym[label]["qpos"] for label, _, _ in ROLLOUTS])
     qvel_x = np.stack([gym[label]["qvel"] for label, _, _ in ROLLOUTS])
     # float32 matmuls as MuJoCo's C does them: under a GPU's default (TF32-class) precision HalfCheetah's
-    # observation is off by 1.5e-4 after one step (measured on an H200; README "Backend"). A no-op on CPU.
+    # observation is off by 1.5e-4 after one step (measured on an H200; docs/gpu.md). A no-op on CPU.
     with jax.default_matmul_precision("highest"):
         s0, s_final, traj = jax.block_until_ready(run(reset_keys, qpos_x, qvel_x, actions))
     return dict(env=env, gym=gym, s0=s0, s_final=s_final, traj=traj, n_steps=n_steps)

@@ -335,7 +335,7 @@ def test_exported_policy_reproduces_the_training_evaluation(reference):
     ck.close()
     key = jax.random.PRNGKey(7)
     # float32 matmuls as NumPy does them: a GPU's default precision (TF32 class) differs from the exported
-    # NumPy policy by up to ~4e-4 relative (measured on an H200; README "Backend"). A no-op on CPU.
+    # NumPy policy by up to ~4e-4 relative (measured on an H200; docs/gpu.md). A no-op on CPU.
     with jax.default_matmul_precision("highest"):
         _check_exported_policy(reference, trainer, state, key)
     # The final evaluation in the metrics used the same parameters.

@@ -24,6 +24,6 @@ for leg in default optout; do
   echo "=== leg $leg: XLA_FLAGS=${XLA_FLAGS-unset} $(date -u +%T)" | tee -a $L
   timeout 150 python3 -m experiments.bench --envs pendulum --methods meta --presets paper --seeds 64 --repeats 3 \
     --target-steps 1000 --out $OUT/det_ops_bench_$leg.md --json $OUT/det_ops_bench_$leg.json 2>&1 | grep -v settotalmass | tail -n 3 | tee -a $L
-  timeout 90 python3 benchmarks_gpu/det_ops_env.py 512 2>&1 | grep -v -i "settotalmass\|warp" | tee -a $L
+  timeout 90 python3 results/benchmarks/gpu/scripts/det_ops_env.py 512 2>&1 | grep -v -i "settotalmass\|warp" | tee -a $L
 done
 echo "done $(date -u +%T)" | tee -a $L
