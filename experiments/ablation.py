@@ -34,7 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
-from experiments import artefacts
+from experiments import cells, figures, stats
 
 MANIFEST = "ablation.json"
 
@@ -65,7 +65,7 @@ def config_diff(config: dict, control: dict, ignore: Sequence[str] = ("run.total
             if k not in ignore and a.get(k) != b.get(k)}
 
 
-def cut(r: artefacts.RunResult, upto: int) -> tuple[np.ndarray, np.ndarray]:
+def cut(r: cells.RunResult, upto: int) -> tuple[np.ndarray, np.ndarray]:
     """(steps, values) of the evaluations at env steps <= upto."""
     keep = r.steps <= upto
     return r.steps[keep], r.values[:, keep]
@@ -84,13 +84,13 @@ def teacher_log_std(path: str, config: dict, upto: int) -> dict | None:
     if not rows or "teacher_log_std" not in rows[0]:
         return None
     steps, values = reporting.curves(rows, "teacher_log_std")
-    per_seed = [float(x) for x in artefacts.final_returns(np.asarray(values)[:, steps <= upto])]
+    per_seed = [float(x) for x in stats.final_returns(np.asarray(values)[:, steps <= upto])]
     floor = float(config["meta"]["min_log_std"])
     return {"mean": float(np.mean(per_seed)), "per_seed": per_seed, "floor": floor,
             "seeds_at_floor": int(sum(x <= floor + 0.01 for x in per_seed))}
 
 
-def compare(runs: Sequence[tuple[str, artefacts.RunResult]], upto: int) -> list[dict]:
+def compare(runs: Sequence[tuple[str, cells.RunResult]], upto: int) -> list[dict]:
     """One row per run (the first is the control): finals, stats, config changes, teacher log-std."""
     if upto <= 0:
         raise ValueError(f"--upto must be positive, got {upto}")
@@ -103,16 +103,16 @@ def compare(runs: Sequence[tuple[str, artefacts.RunResult]], upto: int) -> list[
         if r.num_seeds != control.num_seeds or r.run_args.get("seed") != control.run_args.get("seed"):
             raise ValueError(f"{name}: seeds ({r.num_seeds}, base {r.run_args.get('seed')}) differ from the "
                              f"control's ({control.num_seeds}, base {control.run_args.get('seed')})")
-    finals_control = artefacts.final_returns(cut(control, upto)[1])
+    finals_control = stats.final_returns(cut(control, upto)[1])
     for i, (name, r) in enumerate(runs):
         steps, values = cut(r, upto)
-        finals = artefacts.final_returns(values)
-        mean, std = artefacts.mean_std(finals)
-        _, half = artefacts.t_interval(finals)
-        p = math.nan if i == 0 else artefacts.welch_test(finals, finals_control)[1]
+        finals = stats.final_returns(values)
+        mean, std = stats.mean_std(finals)
+        _, half = stats.t_interval(finals)
+        p = math.nan if i == 0 else stats.welch_test(finals, finals_control)[1]
         rows.append({"name": name, "path": r.path, "control": i == 0, "steps": steps, "values": values,
                      "evaluations": int(steps.size),
-                     "final_evaluations": artefacts.num_final_evaluations(int(steps.size)),
+                     "final_evaluations": stats.num_final_evaluations(int(steps.size)),
                      "finals": finals, "mean": mean, "std": std, "ci_half": half, "p_vs_control": p,
                      "diff": {} if i == 0 else config_diff(r.config, control.config),
                      "teacher": teacher_log_std(r.path, r.config, upto),
@@ -143,11 +143,11 @@ def markdown(rows: list[dict], task: str, upto: int, build: dict) -> str:
              "| teacher log-std | seeds at floor |", "|---|---|---|---|---|---|---|"]
     for r in rows:
         t = r["teacher"]
-        log_std = "–" if t is None else artefacts.fmt(t["mean"], 2)
+        log_std = "–" if t is None else stats.fmt(t["mean"], 2)
         at_floor = "–" if t is None else f"{t['seeds_at_floor']} of {len(t['per_seed'])}"
-        p = "–" if r["control"] else artefacts.fmt_p(r["p_vs_control"])
-        lines.append(f"| {r['name']} | {_diff_text(r)} | {artefacts.fmt(r['mean'])} ± {artefacts.fmt(r['std'])} | "
-                     f"± {artefacts.fmt(r['ci_half'])} | {p} | {log_std} | {at_floor} |")
+        p = "–" if r["control"] else stats.fmt_p(r["p_vs_control"])
+        lines.append(f"| {r['name']} | {_diff_text(r)} | {stats.fmt(r['mean'])} ± {stats.fmt(r['std'])} | "
+                     f"± {stats.fmt(r['ci_half'])} | {p} | {log_std} | {at_floor} |")
     lines += ["", "---", "",
               f"Built {build['built']} at commit `{build.get('commit') or 'unknown'}` on "
               f"{build['machine']['platform']}. Runs (folder; stored budget; commit of the run):"]
@@ -157,7 +157,7 @@ def markdown(rows: list[dict], task: str, upto: int, build: dict) -> str:
 
 def write_report(rows: list[dict], task: str, upto: int, out: str) -> list[str]:
     os.makedirs(out, exist_ok=True)
-    build = artefacts.build_info(out)
+    build = cells.build_info(out)
     md = os.path.join(out, "README.md")
     with open(md, "w") as f:  # rebuildable output: plain writes, like experiments.artefacts
         f.write(markdown(rows, task, upto, build))
@@ -169,7 +169,7 @@ def write_report(rows: list[dict], task: str, upto: int, out: str) -> list[str]:
             t = r["teacher"]
             for s, v in enumerate(r["finals"]):
                 w.writerow([r["name"], s, f"{v:.3f}", "" if t is None else f"{t['per_seed'][s]:.4f}"])
-    plt = artefacts._plt()
+    plt = figures.pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.2))
     for r in rows:
         mean, std = np.nanmean(r["values"], 0), np.nanstd(r["values"], 0)
@@ -182,7 +182,7 @@ def write_report(rows: list[dict], task: str, upto: int, out: str) -> list[str]:
     ax.legend(fontsize=7)
     fig.tight_layout()
     png = os.path.join(out, "curves.png")
-    artefacts._save(fig, png, build)
+    figures.save_figure(fig, png, build)
     plt.close(fig)
     return [md, csv_path, png]
 
@@ -193,7 +193,7 @@ def archive(path: str, dest: str) -> str:
         raise ValueError(f"{path}: no metrics.jsonl (not a run folder)")
     if os.path.abspath(path) == os.path.abspath(dest):
         return dest
-    artefacts.copy_result_files(path, dest)
+    cells.copy_result_files(path, dest)
     return dest
 
 
@@ -241,7 +241,7 @@ def main(argv: list[str] | None = None) -> int:
             specs = [(n, archive(path, os.path.join(a.out, "cells", slug(n)))) for n, path in specs]
         runs = []
         for name, path in specs:
-            r = artefacts.load_run(path)
+            r = cells.load_run(path)
             if r is None:
                 raise ValueError(f"{name}: no evaluations stored in {path}")
             runs.append((name, r))
@@ -258,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
     for r in rows:
         t = r["teacher"]
         print(f"{r['name']}: final {r['mean']:.1f} ± {r['std']:.1f}"
-              + ("" if r["control"] else f", p vs control {artefacts.fmt_p(r['p_vs_control'])}")
+              + ("" if r["control"] else f", p vs control {stats.fmt_p(r['p_vs_control'])}")
               + ("" if t is None else f", teacher log-std {t['mean']:.2f} ({t['seeds_at_floor']} seeds at floor)"))
     print("wrote " + ", ".join(files))
     return 0

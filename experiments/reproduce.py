@@ -42,7 +42,9 @@ import os
 import sys
 import time
 
-from experiments import artefacts
+from experiments.artefacts import add_figure_options, build_all
+from experiments.cells import archive_cell, archive_dir_for, read_json, results_dir_for
+from experiments.grid import METHODS, TASKS, baseline_for
 
 # Where --physics=mujoco keeps its grid by default, apart from the MJX grid's runs/reproduce and results.
 MUJOCO_RUNS, MUJOCO_RESULTS = "runs/reproduce-mujoco", "results/mujoco"
@@ -57,8 +59,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "Table 2 and the figures from the stored results.")
     p.add_argument("--tasks", default=",".join(RUN_ORDER),
                    help=f"comma-separated tasks, run in this order (default: {','.join(RUN_ORDER)})")
-    p.add_argument("--methods", default=",".join(artefacts.METHODS),
-                   help=f"comma-separated methods: {', '.join(artefacts.METHODS)} (default: all)")
+    p.add_argument("--methods", default=",".join(METHODS),
+                   help=f"comma-separated methods: {', '.join(METHODS)} (default: all)")
     p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, help=f"seeds per cell (default {DEFAULT_SEEDS})")
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed of every cell (default 0)")
     p.add_argument("--steps", type=int, default=None,
@@ -75,9 +77,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--runs-dir", default=None, help="grid root (default runs/reproduce)")
     p.add_argument("--results-dir", default=None, help="artefact folder (default results)")
     p.add_argument("--artefacts-only", action="store_true", help="train nothing; rebuild the artefacts only")
-    artefacts.add_figure_options(p)
+    add_figure_options(p)
     p.add_argument("--no-plot", action="store_true", help="skip each run's own PNGs (the artefacts are still drawn)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.add_argument("--tensorboard", action="store_true",
+                   help="each cell also writes TensorBoard scalars to <cell>/tensorboard/seed_<i>/ (experiments.run "
+                        "--tensorboard; needs the tensorboard extra, tensorboardX)")
     p.add_argument("--dry-run", action="store_true", help="print what would be run, skipped or resumed; do nothing")
     return p
 
@@ -114,8 +119,8 @@ def finished_at_budget(args: argparse.Namespace, task: str, method: str) -> bool
     """Whether the cell's run folder or its archived copy finished at (at least) the requested budget."""
     wanted = wanted_budget(args, task)
     for path in (cell_dir(args.runs_dir, args.preset, task, method),
-                 os.path.join(artefacts.archive_dir_for(args.results_dir, args.preset), task, method)):
-        summary = artefacts.read_json(os.path.join(path, "summary.json"))
+                 os.path.join(archive_dir_for(args.results_dir, args.preset), task, method)):
+        summary = read_json(os.path.join(path, "summary.json"))
         if summary and summary["env_steps"] >= wanted:
             return True
     return False
@@ -131,7 +136,7 @@ def wanted_budget(args: argparse.Namespace, task: str) -> int:
 def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state: str) -> list[str]:
     """The explicit ``experiments.run`` options of a cell (the same for a fresh start and a resume; an
     extension names the new budget)."""
-    argv = [f"--env={task}", *artefacts.METHODS[method], f"--preset={args.preset}", f"--seeds={args.seeds}",
+    argv = [f"--env={task}", *METHODS[method], f"--preset={args.preset}", f"--seeds={args.seeds}",
             f"--seed={args.seed}", f"--source={args.source}"]
     if args.physics != "mjx" and task != "pendulum":
         argv.append(f"--physics={args.physics}")
@@ -143,6 +148,8 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
         argv.append("--no-plot")
     if args.quiet:
         argv.append("--quiet")
+    if args.tensorboard:
+        argv.append("--tensorboard")
     if state in ("resume", "extend"):
         argv += ["--resume", out]
     else:
@@ -169,12 +176,12 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
     from metapg_jax import reporting
 
     path = os.path.join(out, "reproduce.json")
-    calls = artefacts.read_json(path).get("calls", []) + [{
+    calls = read_json(path).get("calls", []) + [{
         "argv": argv, "status": status, "wall_seconds": round(seconds, 2), "commit": started["commit"],
         "dirty": started["dirty"], "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}]
     # A call killed before it wrote its record (session end, SIGKILL) still started the cell: config.json's
     # commit wins; the first recorded call's is the fallback for a cell without one.
-    cfg = artefacts.read_json(os.path.join(out, "config.json"))
+    cfg = read_json(os.path.join(out, "config.json"))
     first = ({"commit": cfg["commit"], "dirty": cfg.get("dirty", calls[0].get("dirty"))} if cfg.get("commit") else
              {"commit": calls[0].get("commit", started["commit"]), "dirty": calls[0].get("dirty", started["dirty"])})
     commits = {c["commit"] for c in calls if c.get("commit")} | {first["commit"]}
@@ -194,7 +201,7 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         out = cell_dir(args.runs_dir, args.preset, task, method)
         state = cell_state(out)
         tag = f"[{i}/{len(cells)}] {args.preset}/{task}/{method}"
-        archived = os.path.join(artefacts.archive_dir_for(args.results_dir, args.preset), task, method)
+        archived = os.path.join(archive_dir_for(args.results_dir, args.preset), task, method)
         if state == "new" and os.path.exists(os.path.join(archived, "summary.json")):
             out, state = archived, "done"  # finished in an earlier clone; its run folder is not committed
         wanted = wanted_budget(args, task)
@@ -205,7 +212,7 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
             from metapg_jax.checkpoint import saved_steps
 
             if s["env_steps"] < wanted and out != archived and saved_steps(os.path.join(out, "checkpoints")):
-                stored_every = artefacts.read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
+                stored_every = read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
                 wanted_every = requested_config(args, task, method).run.eval_every
                 if stored_every == wanted_every:
                     state = "extend"  # a finished shorter run: continue it to the requested budget
@@ -243,7 +250,7 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
             code = 130
         if os.path.isdir(out):
             _write_cell_record(out, argv, code, time.perf_counter() - t0, started)
-            if artefacts.archive_cell(out, archived, method, artefacts.baseline_for(args.preset)):
+            if archive_cell(out, archived, method, baseline_for(args.preset)):
                 print(f"{tag}: finished; results archived in {archived}", flush=True)
         report[(task, method)] = {0: {"resume": "resumed", "extend": "extended"}.get(state, "ran")}.get(
             code, f"exit {code}")
@@ -267,10 +274,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.results_dir is None:
         args.results_dir = MUJOCO_RESULTS if mujoco else "results"
     try:
-        tasks = parse_list(args.tasks, artefacts.TASKS, "task")
+        tasks = parse_list(args.tasks, TASKS, "task")
         if mujoco and args.source != "gymnasium":
             raise ValueError(f"--physics=mujoco steps gymnasium's models; source {args.source!r} has only MJX")
-        methods = parse_list(args.methods, tuple(artefacts.METHODS), "method")
+        methods = parse_list(args.methods, tuple(METHODS), "method")
         if args.seeds <= 0:
             raise ValueError(f"--seeds must be positive, got {args.seeds}")
         if args.steps is not None and args.steps <= 0:
@@ -278,6 +285,12 @@ def main(argv: list[str] | None = None) -> int:
         for item in args.overrides:
             if "=" not in item:
                 raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
+        if args.tensorboard and not args.artefacts_only:
+            from metapg_jax import reporting
+
+            if not reporting.tensorboard_available():
+                raise ValueError('--tensorboard needs tensorboardX: pip install -e ".[tensorboard]" '
+                                 '(or pip install tensorboardX)')
         if not args.artefacts_only:
             # Every cell's config before the first one trains: a budget that one method's cycle does not
             # divide, or a bad --set, stops the grid here rather than after the cells before it have run.
@@ -302,14 +315,14 @@ def main(argv: list[str] | None = None) -> int:
         print("grid: " + (", ".join(f"{n} {k}" for k, n in sorted(counts.items())) or "nothing to do"), flush=True)
     if args.dry_run:
         return status
-    manifest = artefacts.build_all(
+    manifest = build_all(
         args.runs_dir, args.results_dir, args.preset, embedding=args.embedding,
         visitation_tasks=args.visitation_task,
         extra_provenance={"reproduce_argv": sys.argv[1:] if argv is None else list(argv),
                           "requested": {"tasks": tasks, "methods": methods, "seeds": args.seeds, "seed": args.seed,
                                         "steps": args.steps, "overrides": args.overrides},
                           "grid_wall_seconds": round(time.perf_counter() - t0, 2)})
-    out = artefacts.results_dir_for(args.results_dir, args.preset)
+    out = results_dir_for(args.results_dir, args.preset)
     print(f"artefacts: {len(manifest['files'])} files in {out} ({len(manifest['cells'])} stored cells, "
           f"{len(manifest['not_run'])} not run): {', '.join(manifest['files'])}", flush=True)
     return status

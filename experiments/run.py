@@ -14,7 +14,9 @@ as the run goes), ``cycles.jsonl`` (meta: per-cycle teacher metrics per seed),
 std band and per-seed lines), ``teacher.png`` (meta), ``visits.npz`` (sampled
 states of the exploring policy and the student, early and late, per seed),
 ``policy.npz`` (the deterministic actors, see ``metapg_jax.load_policy``),
-``summary.json``; and prints the final evaluation return per seed and mean ± std.
+``summary.json``; and prints the final evaluation return per seed and mean ± std. With
+``--tensorboard`` also ``tensorboard/seed_<i>/`` (the numbers of metrics.jsonl and cycles.jsonl as
+TensorBoard scalars, one run per seed; ``tensorboard --logdir <out>/tensorboard``).
 
 ``--resume RUN_DIR --steps=N`` with N above the stored budget *extends* the run (finished or
 not) to N env steps per seed: it continues from the latest checkpoint and ends where a run started
@@ -98,6 +100,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "see metapg_jax/compile_cache.py)")
     p.add_argument("--debug-nans", action="store_true", help="turn on jax_debug_nans (slow; for hunting NaNs)")
     p.add_argument("--no-plot", action="store_true", help="skip the PNG plots")
+    p.add_argument("--tensorboard", action="store_true",
+                   help="also write every number of metrics.jsonl (x: env steps) and, for meta, of cycles.jsonl "
+                        "(as teacher/<name>, x: env steps at the end of the cycle) as TensorBoard scalars under "
+                        "OUT/tensorboard/seed_<i>/, flushed per chunk; view with tensorboard --logdir "
+                        "OUT/tensorboard. Needs the tensorboard extra (tensorboardX). Output only, not part of "
+                        "the stored run: a --resume may add or leave it out; a resume with it first drops "
+                        "events past the checkpoint and writes the finished rows the event files lack (all "
+                        "of them if the run had no --tensorboard)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -169,6 +179,12 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
     extend_from = None
     if args.checkpoint_every < 0 or not args.checkpoint_minutes > 0:
         raise ValueError("--checkpoint-every must be >= 0 and --checkpoint-minutes > 0")
+    if args.tensorboard:
+        from metapg_jax import reporting
+
+        if not reporting.tensorboard_available():
+            raise ValueError('--tensorboard needs tensorboardX: pip install -e ".[tensorboard]" '
+                             '(or pip install tensorboardX)')
     if args.resume:
         out = args.resume
         path = os.path.join(out, "config.json")
@@ -242,7 +258,7 @@ def main(argv: list[str] | None = None) -> int:
         jax.config.update("jax_debug_nans", True)
     return run(cfg, a, out, resume=resume, overwrite=args.overwrite, plot=not args.no_plot, quiet=args.quiet,
                checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes,
-               extend_from=extend_from)
+               extend_from=extend_from, tensorboard=args.tensorboard)
 
 
 def _maybe_initialize_distributed() -> None:
@@ -309,7 +325,7 @@ def _truncate_jsonl(path: str, keep) -> None:
 
 def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
         plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0,
-        extend_from: int | None = None) -> int:
+        extend_from: int | None = None, tensorboard: bool = False) -> int:
     import jax
     import numpy as np
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
@@ -377,9 +393,16 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
 
     metrics_writer = reporting.JsonlWriter(os.path.join(out, "metrics.jsonl"))
     cycle_writer = reporting.JsonlWriter(os.path.join(out, "cycles.jsonl")) if cfg.run.method == "meta" else None
-    progress = reporting.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet)
-    if start:
-        progress.update(start * cfg.run.eval_every, np.full(1, np.nan))
+    tb_writer = None
+    if tensorboard and main_process:
+        tb_writer = reporting.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle)
+        if resume:  # the JSONL files end at the checkpoint now (truncated above)
+            cycles_path = os.path.join(out, "cycles.jsonl")
+            tb_writer.resume(reporting.read_jsonl(os.path.join(out, "metrics.jsonl")),
+                             reporting.read_jsonl(cycles_path) if os.path.exists(cycles_path) else [],
+                             start * cfg.run.eval_every)
+    progress = reporting.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet,
+                                  initial=start * cfg.run.eval_every)  # rates: this call's steps only
     last_ckpt = time.perf_counter()
     t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
     status, chunks_run = 0, 0
@@ -401,11 +424,15 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
                     break
                 if main_process:
                     now = time.perf_counter()
-                    metrics_writer.write(reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk))
+                    rows = reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
+                    metrics_writer.write(rows)
                     t_chunk = now
+                    cycles = []
                     if cycle_writer is not None:
-                        cycle_writer.write(reporting.cycle_rows(metrics, TEACHER_CYCLE_METRICS,
-                                                                chunk * cfg.cycles_per_chunk))
+                        cycles = reporting.cycle_rows(metrics, TEACHER_CYCLE_METRICS, chunk * cfg.cycles_per_chunk)
+                        cycle_writer.write(cycles)
+                    if tb_writer is not None:
+                        tb_writer.write(rows, cycles)
                 progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
                 last = chunk + 1 == cfg.num_chunks
                 due = ((chunk + 1 - start) % checkpoint_every == 0) if checkpoint_every else \
@@ -423,6 +450,8 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
         metrics_writer.close()
         if cycle_writer is not None:
             cycle_writer.close()
+        if tb_writer is not None:
+            tb_writer.close()
         checkpointer.close()
     if status:
         return status

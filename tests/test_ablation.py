@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from experiments import ablation
+from experiments import ablation, cells
 from tests.helpers import fabricate_run
 
 STEPS = np.arange(1, 21) * 1000  # 20 evaluations
@@ -52,7 +52,7 @@ def runs(tmp_path):
 
 def test_numbers_at_the_common_budget_match_hand_computation(runs):
     root, control, variant = runs
-    rows = ablation.compare([(n, ablation.artefacts.load_run(str(root / n))) for n in ("control", "variant")],
+    rows = ablation.compare([(n, cells.load_run(str(root / n))) for n in ("control", "variant")],
                             upto=12000)
     # 12 evaluations up to 12,000 steps -> final = the last 1 (10% of 12, at least 1)
     fin_c, fin_v = control[:, 11], variant[:, 11]

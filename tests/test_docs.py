@@ -57,3 +57,17 @@ def test_readme_links_every_doc():
     readme = read("README.md")
     for doc in DOCS:
         assert f"]({doc})" in readme, f"README does not link {doc}"
+
+
+def test_console_scripts_are_the_modules_main_functions():
+    """``metapg-run`` etc. (pyproject's [project.scripts]) call the ``main`` that ``python -m`` runs."""
+    import importlib
+    import tomllib
+
+    with open(os.path.join(ROOT, "pyproject.toml"), "rb") as f:
+        scripts = tomllib.load(f)["project"]["scripts"]
+    assert {"metapg-run", "metapg-reproduce", "metapg-export"} <= scripts.keys()
+    for name, target in scripts.items():
+        module, _, func = target.partition(":")
+        assert name == "metapg-" + module.split(".")[-1] and func == "main", (name, target)
+        assert callable(getattr(importlib.import_module(module), func))

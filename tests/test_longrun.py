@@ -143,6 +143,9 @@ def test_extending_a_finished_run_equals_the_longer_run(reference, tmp_path):
     assert json.load(open(os.path.join(out, "summary_600.json"))) == short
     summary = json.load(open(os.path.join(out, "summary.json")))
     assert summary["env_steps"] == 900 and summary["extended_from_steps"] == 600
+    # Its rate counts the steps trained in this call only (300 per seed), not the run's 900.
+    seeds = stored["run_args"]["seeds"]
+    assert summary["env_steps_per_second_total"] == pytest.approx(seeds * 300 / summary["train_seconds"], rel=0.02)
     # The extended run is now a 900-step run: a shorter budget is refused.
     assert run.main(["--resume", out, "--steps=600", "--quiet", "--no-plot"]) == 2
     # Its checkpoint after chunk 2 was written by the 600-step run (replay capacity 600): still exportable.
@@ -375,3 +378,20 @@ def test_checkpoint_round_trips_mjx_states_with_zero_size_arrays(tmp_path):
     assert meta["note"] == "mjx" and meta["chunks_done"] == 1
     for a, b in zip(jax.tree.leaves(state), jax.tree.leaves(restored)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_progress_after_a_resume_counts_this_calls_steps_only():
+    """A resumed run's bar starts at the steps already done, and its rates count only what this call
+    trains (it once showed 1e9 steps/s on its first update and twice the true rate after)."""
+    from metapg_jax import reporting
+
+    bar = reporting.Progress(1_500_000, 8, "resumed", initial=270_000)
+    time.sleep(0.2)
+    bar.update(285_000, np.zeros(8))
+    elapsed = time.perf_counter() - bar.start
+    assert bar.bar.n == 285_000
+    assert bar.total_rate() == pytest.approx(8 * 15_000 / elapsed, rel=0.05)
+    shown = bar.bar.format_dict  # tqdm's own per-seed rate and ETA subtract the initial steps too
+    assert shown["initial"] == 270_000
+    assert (shown["n"] - shown["initial"]) / shown["elapsed"] == pytest.approx(15_000 / elapsed, rel=0.1)
+    bar.close()

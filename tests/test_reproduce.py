@@ -1,4 +1,5 @@
-"""experiments.artefacts / experiments.reproduce / the teacher-design notebook.
+"""experiments.artefacts (and its stats / cells / tables / figures) / experiments.reproduce / the
+teacher-design notebook.
 
 * statistics helpers against formulas written out here;
 * the artefact builders on fabricated run folders (numbers, "not run" and "incomplete" cells, figures);
@@ -11,12 +12,15 @@ import json
 import math
 import os
 import shutil
+import sys
 
 import numpy as np
 import pytest
 from scipy import stats
 
-from experiments import artefacts, reproduce
+from experiments import artefacts, cells, figures, grid, reproduce, tables
+from experiments.stats import (final_returns, first_step_reaching, fmt, mean_std, num_final_evaluations,
+                               t_interval, welch_test)
 from tests.helpers import fabricate_run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -27,34 +31,34 @@ TINY = ["--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "m
 # ---------------------------------------------------------------------------------------------- statistics
 
 def test_final_returns_use_the_last_tenth_at_least_one():
-    assert [artefacts.num_final_evaluations(t) for t in (1, 5, 9, 10, 19, 20, 100, 167)] == [1, 1, 1, 1, 1, 2, 10, 16]
+    assert [num_final_evaluations(t) for t in (1, 5, 9, 10, 19, 20, 100, 167)] == [1, 1, 1, 1, 1, 2, 10, 16]
     values = np.arange(2 * 20, dtype=float).reshape(2, 20)
-    np.testing.assert_allclose(artefacts.final_returns(values), [(18 + 19) / 2, (38 + 39) / 2])
-    np.testing.assert_allclose(artefacts.final_returns(values[:, :3]), [2, 22])
+    np.testing.assert_allclose(final_returns(values), [(18 + 19) / 2, (38 + 39) / 2])
+    np.testing.assert_allclose(final_returns(values[:, :3]), [2, 22])
 
 
 def test_mean_std_t_interval_and_welch_match_the_formulas():
     a = np.array([1.0, 2.5, 4.0, 3.5])
     b = np.array([0.5, 1.0, 0.0])
-    mean, std = artefacts.mean_std(a)
+    mean, std = mean_std(a)
     assert mean == pytest.approx(a.sum() / 4)
     assert std == pytest.approx(math.sqrt(((a - a.mean()) ** 2).sum() / 3))
-    _, half = artefacts.t_interval(a)
+    _, half = t_interval(a)
     assert half == pytest.approx(stats.t.ppf(0.975, 3) * std / math.sqrt(4))
     # Welch: t = (ma - mb) / sqrt(va/na + vb/nb), Welch-Satterthwaite df, two-sided p.
     va, vb = a.var(ddof=1) / 4, b.var(ddof=1) / 3
     t = (a.mean() - b.mean()) / math.sqrt(va + vb)
     df = (va + vb) ** 2 / (va ** 2 / 3 + vb ** 2 / 2)
-    got_t, got_p = artefacts.welch_test(a, b)
+    got_t, got_p = welch_test(a, b)
     assert got_t == pytest.approx(t) and got_p == pytest.approx(2 * stats.t.sf(abs(t), df))
-    assert all(math.isnan(v) for v in artefacts.welch_test(a, b[:1]))
-    assert math.isnan(artefacts.t_interval([3.0])[1]) and math.isnan(artefacts.mean_std([3.0])[1])
+    assert all(math.isnan(v) for v in welch_test(a, b[:1]))
+    assert math.isnan(t_interval([3.0])[1]) and math.isnan(mean_std([3.0])[1])
 
 
 def test_first_step_reaching():
     steps = np.array([100, 200, 300, 400])
-    assert artefacts.first_step_reaching(steps, np.array([0.0, np.nan, 5.0, 7.0]), 5.0) == 300
-    assert artefacts.first_step_reaching(steps, np.array([0.0, 1.0, 2.0, 3.0]), 5.0) is None
+    assert first_step_reaching(steps, np.array([0.0, np.nan, 5.0, 7.0]), 5.0) == 300
+    assert first_step_reaching(steps, np.array([0.0, 1.0, 2.0, 3.0]), 5.0) is None
 
 
 # ---------------------------------------------------------------------------------------------- fabricated runs
@@ -126,9 +130,9 @@ def test_table2_numbers_match_hand_computation(fabricated):
     assert "not run" in idp_line and "7,718 ± 277" in idp_line and "2,795 ± 1,325" in idp_line
     assert "| 20,000 (reduced; paper: 1,500,000) |" in idp_line  # tiny budget: flagged
     # the paper budget rounded down to whole evaluation intervals is not a reduction; anything less is
-    assert artefacts._budget_text("hopper", {"meta-independent": 990_000}) == "990,000"
-    assert artefacts._budget_text("reacher", {"meta-independent": 696_000, "ddpg-normal": 696_000}) == "696,000"
-    assert artefacts._budget_text("hopper", {"meta-independent": 450_000, "ddpg-paramnoise": 990_000}) == \
+    assert tables.budget_text("hopper", {"meta-independent": 990_000}) == "990,000"
+    assert tables.budget_text("reacher", {"meta-independent": 696_000, "ddpg-normal": 696_000}) == "696,000"
+    assert tables.budget_text("hopper", {"meta-independent": 450_000, "ddpg-paramnoise": 990_000}) == \
         "Meta (independent): 450,000; DDPG (param noise): 990,000 (reduced; paper: 1,000,000)"
     assert "incomplete (5,000 of 15,000 steps)" in md
     assert "| Hopper | not run | not run | not run | not run | 205 ± 41 | 135 ± 42 | — | — |" in md
@@ -150,13 +154,13 @@ def test_no_welch_test_between_cells_of_different_budgets(tmp_path):
                   rng.normal(-10, 1, (3, 20)), steps)
     fabricate_run(tmp_path / "paper" / "reacher" / "ddpg-paramnoise", "reacher", "ddpg-paramnoise",
                   rng.normal(-12, 1, (3, 10)), steps[:10])
-    results = artefacts.collect(str(tmp_path / "paper"), ["reacher"])
-    row = artefacts.table2_rows(results, ["reacher"], list(artefacts.METHODS))[0]
+    results = cells.collect(str(tmp_path / "paper"), ["reacher"])
+    row = tables.table2_rows(results, ["reacher"], list(grid.METHODS))[0]
     assert row["methods"]["meta-independent"]["budget"] == 20000 and row["methods"]["ddpg-paramnoise"]["budget"] == 10000
     assert row["welch"] is None and row["welch_skipped"] == "budgets differ"
-    comparisons = artefacts.comparison_rows(results, ["reacher"], list(artefacts.METHODS))
+    comparisons = tables.comparison_rows(results, ["reacher"], list(grid.METHODS))
     assert len(comparisons["methods"]) == 2 and comparisons["pairs"] == []  # no pair across budgets either
-    artefacts.write_table2([row], list(artefacts.METHODS), str(tmp_path / "out"), "", "paper")
+    tables.write_table2([row], list(grid.METHODS), str(tmp_path / "out"), "", "paper")
     md = (tmp_path / "out" / "table2.md").read_text()
     assert "| n/a (budgets differ) | n/a | n/a |" in md
 
@@ -206,7 +210,7 @@ def test_comparisons_match_hand_computation(fabricated):
     assert 0 < pairs[("meta-independent", "ddpg-paramnoise")]["a_above_b"] < 20  # the fixture's curves cross
     md = (fabricated["results"] / "comparisons.md").read_text()
     p = pairs[("meta-independent", "ddpg-paramnoise")]
-    assert f"| Meta (independent) | DDPG (param noise) | {artefacts.fmt(p['difference'])} |" in md
+    assert f"| Meta (independent) | DDPG (param noise) | {fmt(p['difference'])} |" in md
     assert f"| {p['a_above_b']} of 20 | {p['b_above_a']} of 20 |" in md and "## InvertedDoublePendulum" in md
 
 
@@ -251,14 +255,14 @@ def test_modern_preset_compares_meta_with_its_own_gaussian_noise_ddpg(tmp_path):
     assert (archive / "ddpg-normal" / "visits.npz").exists()
     assert not (archive / "ddpg-paramnoise" / "visits.npz").exists()
     with pytest.raises(ValueError, match="unknown preset"):
-        artefacts.baseline_for("fancy")
+        grid.baseline_for("fancy")
 
 
 def test_visitation_groups_keep_only_recorded_states():
     v = {f"{w}_{t}": np.ones((2, 5, 3)) for w in ("explore", "student") for t in ("early", "late")}
     teacher = {**v, "explore_count": np.array([3, 10]), "student_count": np.array([5, 5])}
     ddpg = {**v, "explore_count": np.array([10, 10]), "student_count": np.array([0, 0])}
-    groups = artefacts.visitation_groups(teacher, ddpg)
+    groups = figures.visitation_groups(teacher, ddpg)
     assert groups[("early", "teacher")].shape == (3 + 5, 3)
     assert groups[("late", "student")].shape == (10, 3)
     assert groups[("early", "ddpg")].shape == (10, 3)
@@ -267,10 +271,10 @@ def test_visitation_groups_keep_only_recorded_states():
 def test_embeddings_give_two_columns():
     x = np.random.default_rng(0).normal(size=(60, 4))
     for method in ("pca", "tsne"):
-        assert artefacts.embed_2d(x, method).shape == (60, 2)
-    assert artefacts.embed_2d(x[:, :1], "pca").shape == (60, 2)
+        assert figures.embed_2d(x, method).shape == (60, 2)
+    assert figures.embed_2d(x[:, :1], "pca").shape == (60, 2)
     with pytest.raises(ValueError, match="unknown embedding"):
-        artefacts.embed_2d(x, "umap")
+        figures.embed_2d(x, "umap")
 
 
 # ---------------------------------------------------------------------------------------------- reproduce
@@ -397,7 +401,7 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     archived = results / "cells" / "pendulum" / "ddpg-paramnoise"
     assert (archived / "summary.json").exists() and (archived / "metrics.jsonl").exists()
     with np.load(archived / "visits.npz") as v:
-        assert v["explore_late"].shape[-2] <= artefacts.ARCHIVE_VISITS_PER_SEED
+        assert v["explore_late"].shape[-2] <= cells.ARCHIVE_VISITS_PER_SEED
     before = json.loads((results / "table2.json").read_text())["rows"]
     shutil.rmtree(runs)
     assert reproduce.main(argv) == 0
@@ -487,3 +491,17 @@ def test_reproduce_on_the_c_engine_keeps_its_own_folders(tmp_path, capsys, monke
     assert not (tmp_path / "runs").exists()
     assert reproduce.main(["--tasks", "hopper", "--physics", "mujoco", "--source", "brax", "--dry-run"]) == 2
     assert "--physics=mujoco steps gymnasium's models" in capsys.readouterr().err
+
+
+def test_tensorboard_is_passed_to_every_cell_and_needs_its_extra(monkeypatch, tmp_path, capsys):
+    args = reproduce.build_parser().parse_args(["--tensorboard", "--tasks", "pendulum"])
+    for state in ("new", "resume", "extend"):
+        assert "--tensorboard" in reproduce.cell_argv(args, "pendulum", "meta-independent", str(tmp_path), state)
+    assert "--tensorboard" not in reproduce.cell_argv(reproduce.build_parser().parse_args([]), "pendulum",
+                                                      "meta-independent", str(tmp_path), "new")
+    monkeypatch.setitem(sys.modules, "tensorboardX", None)  # the extra not installed
+    runs = tmp_path / "runs"
+    assert reproduce.main(["--tensorboard", "--tasks", "pendulum", "--runs-dir", str(runs),
+                           "--results-dir", str(tmp_path / "res")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "tensorboardX" in err[0] and not runs.exists()

@@ -1,0 +1,200 @@
+"""Stored grid cells: reading run folders (``RunResult``, ``load_run``, ``collect``), the committed
+archive of finished cells (``<results>/cells/<task>/<method>``: ``archive_cell``, ``copy_result_files``),
+where a preset's artefacts go (``results_dir_for``, ``archive_dir_for``) and provenance (per cell, of
+a build, the tables' footer).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import json
+import os
+from typing import Iterable
+
+import numpy as np
+
+from experiments.grid import BASELINE, META, METHODS, TASKS
+from experiments.stats import final_returns
+from metapg_jax import reporting
+
+# ---------------------------------------------------------------------------------------------- loading
+
+@dataclasses.dataclass
+class RunResult:
+    """One grid cell's stored results (a run folder, finished or not)."""
+
+    task: str
+    method: str
+    path: str
+    complete: bool            # summary.json exists (the run finished)
+    config: dict              # config.json's "config"
+    run_args: dict            # config.json's "run_args"
+    info: dict                # the rest of config.json (jax version, backend, devices)
+    summary: dict             # summary.json ({} while running)
+    provenance: dict          # reproduce.json ({} for runs not started by experiments.reproduce)
+    steps: np.ndarray         # (T,) env steps of the evaluations
+    values: np.ndarray        # (seeds, T) evaluation returns
+    train_seconds: float | None = None  # training time over all calls, from metrics.jsonl (reporting.training_seconds)
+    train_seconds_exact: bool = False
+
+    @property
+    def num_seeds(self) -> int:
+        return int(self.values.shape[0])
+
+    @property
+    def budget(self) -> int:
+        return int(self.config["run"]["total_steps"])
+
+    @property
+    def env_steps_done(self) -> int:
+        return int(self.steps[-1]) if self.steps.size else 0
+
+    def final(self) -> np.ndarray:
+        return final_returns(self.values)
+
+
+def load_run(path: str, task: str = "", method: str = "") -> RunResult | None:
+    """A run folder's results, or None when it has no evaluations yet."""
+    cfg_path, metrics_path = os.path.join(path, "config.json"), os.path.join(path, "metrics.jsonl")
+    if not (os.path.exists(cfg_path) and os.path.exists(metrics_path)):
+        return None
+    with open(cfg_path) as f:
+        stored = json.load(f)
+    rows = reporting.read_jsonl(metrics_path)
+    if not rows:
+        return None
+    steps, values = reporting.curves(rows)
+    train_s, exact = reporting.training_seconds(rows)
+    summary = read_json(os.path.join(path, "summary.json"))
+    info = {k: v for k, v in stored.items() if k not in ("config", "run_args")}
+    return RunResult(task=task or stored["config"]["env"]["name"], method=method, path=path,
+                     complete=bool(summary), config=stored["config"], run_args=stored["run_args"], info=info,
+                     summary=summary, provenance=read_json(os.path.join(path, "reproduce.json")),
+                     steps=np.asarray(steps), values=np.asarray(values, np.float64),
+                     train_seconds=None if train_s is None else round(train_s, 2), train_seconds_exact=exact)
+
+
+def read_json(path: str) -> dict:
+    """The JSON object stored at ``path``; {} when the file does not exist."""
+    if not os.path.exists(path):
+        return {}
+    with open(path) as f:
+        return json.load(f)
+
+
+def collect(preset_dir: str, tasks: Iterable[str] = TASKS, methods: Iterable[str] = METHODS,
+            archive_dir: str | None = None) -> dict:
+    """{(task, method): RunResult} for the cells of ``<preset_dir>/<task>/<method>`` that have evaluations.
+
+    With ``archive_dir`` (the committed copies, see ``archive_cell``), a cell that has no finished run
+    under ``preset_dir`` is read from ``<archive_dir>/<task>/<method>`` when a finished one is archived
+    there: run folders are not committed, so a fresh clone has only the archive."""
+    out = {}
+    for task in tasks:
+        for method in methods:
+            r = load_run(os.path.join(preset_dir, task, method), task, method)
+            if archive_dir is not None and (r is None or not r.complete):
+                a = load_run(os.path.join(archive_dir, task, method), task, method)
+                if a is not None and a.complete:
+                    r = a
+            if r is not None:
+                out[(task, method)] = r
+    return out
+
+
+# ---------------------------------------------------------------------------------------------- archive
+
+# What a finished cell keeps in the committed archive (``<results>/cells/<task>/<method>``): everything the
+# artefacts read. Model checkpoints and the run's own PNGs stay in the run folder (gitignored).
+ARCHIVE_FILES = ("config.json", "metrics.jsonl", "summary.json", "reproduce.json")
+# visits.npz (the state-visitation sample) is kept for the two methods the figure compares, thinned to
+# this many states per seed and array (evenly spaced; the figure draws <= 500 points per panel).
+ARCHIVE_VISITS_PER_SEED = 250
+
+
+def results_dir_for(results_dir: str, preset: str) -> str:
+    """The paper preset's artefacts go to ``results_dir``; another preset's to ``results_dir/<preset>``."""
+    return results_dir if preset == "paper" else os.path.join(results_dir, preset)
+
+
+def archive_dir_for(results_dir: str, preset: str) -> str:
+    """The committed archive of ``preset``'s finished cells: ``<results_dir_for(...)>/cells``."""
+    return os.path.join(results_dir_for(results_dir, preset), "cells")
+
+
+def copy_result_files(run_path: str, archive_path: str) -> None:
+    """Copies the ``ARCHIVE_FILES`` a run folder has into ``archive_path``, each atomically."""
+    import shutil
+
+    os.makedirs(archive_path, exist_ok=True)
+    for name in ARCHIVE_FILES:
+        src = os.path.join(run_path, name)
+        if os.path.exists(src):
+            tmp = os.path.join(archive_path, name + ".tmp")
+            shutil.copyfile(src, tmp)
+            os.replace(tmp, os.path.join(archive_path, name))
+
+
+def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = BASELINE) -> bool:
+    """Copies a finished run folder's results into the archive (atomically, file by file); False if the
+    run is not finished. Re-archiving a cell replaces its files. The visitation sample is kept for the
+    methods of the visitation figure only (Meta independent and ``baseline``)."""
+    if not os.path.exists(os.path.join(run_path, "summary.json")):
+        return False
+    copy_result_files(run_path, archive_path)
+    visits = os.path.join(run_path, "visits.npz")
+    if method in (META, baseline) and os.path.exists(visits):
+        with np.load(visits) as v:
+            thinned = {}
+            for k, x in v.items():
+                if x.ndim >= 2 and x.shape[-2] > ARCHIVE_VISITS_PER_SEED:  # (..., states, obs)
+                    idx = np.linspace(0, x.shape[-2] - 1, ARCHIVE_VISITS_PER_SEED).round().astype(int)
+                    x = np.take(x, idx, axis=-2)
+                thinned[k] = x
+        reporting.savez_atomic(os.path.join(archive_path, "visits.npz"), thinned)
+    return True
+
+
+# ---------------------------------------------------------------------------------------------- provenance
+
+def cell_provenance(r: RunResult) -> dict:
+    """What a result cell was made from: commit, config, seeds, budget, machine, wall time.
+
+    ``wall_seconds`` is reproduce.json's (the recorded calls, compile included) or else the run's own
+    summary; ``train_seconds_all_calls`` adds up the training time of every call from the metrics rows."""
+    prov = r.provenance
+    wall = prov.get("wall_seconds")
+    if wall is None and r.summary:
+        wall = (r.summary.get("compile_seconds") or 0) + (r.summary.get("train_seconds") or 0)
+    return {
+        "task": r.task, "method": r.method, "path": r.path, "complete": r.complete,
+        "commit": prov.get("commit"), "seeds": r.num_seeds, "base_seed": r.run_args.get("seed"),
+        "budget_env_steps": r.budget, "env_steps_done": r.env_steps_done, "evaluations": int(r.steps.size),
+        "preset": r.config.get("preset"), "run_args": r.run_args, "config": r.config,
+        "machine": prov.get("machine") or {k: r.info.get(k) for k in ("jax_version", "backend", "devices")},
+        "wall_seconds": wall,
+        # every call's training time, compile excluded, from the metrics rows: also the calls a session end
+        # killed before reproduce.json recorded them (which wall_seconds misses)
+        "train_seconds_all_calls": r.train_seconds, "train_seconds_all_calls_exact": r.train_seconds_exact,
+    }
+
+
+def provenance_footer(build: dict, cells: Iterable[RunResult]) -> str:
+    """Markdown lines: commit and machine of this build and of the runs used."""
+    cells = list(cells)
+    commits = sorted({commit for c in cells
+                      for commit in (c.provenance.get("commits") or [c.provenance.get("commit") or "unknown"])})
+    lines = ["", "---", "",
+             f"Built {build['built']} from `{build['runs_dir']}` at commit `{build['commit'] or 'unknown'}`"
+             f"{' (uncommitted changes)' if build.get('dirty') else ''} on {build['machine']['platform']} "
+             f"({build['machine']['cpu_count']} CPUs). Runs used: {len(cells)}"
+             + (f", made at commit(s) {', '.join(f'`{c}`' for c in commits)}" if cells else "")
+             + ". Per-cell config, seeds, budget, machine and wall time: `manifest.json`."]
+    return "\n".join(lines) + "\n"
+
+
+def build_info(runs_dir: str) -> dict:
+    """This build's provenance: local time, ``runs_dir``, commit, dirty flag and machine."""
+    return {"built": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
+            "runs_dir": runs_dir, **reporting.provenance()}

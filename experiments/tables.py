@@ -1,0 +1,389 @@
+"""The tables of the artefacts, from stored cells (``experiments.cells``): the paper's Table 2
+(``table2.md`` / ``.json`` / ``_per_seed.csv``), samples to reach the DDPG baseline's best
+(``steps_to_threshold.csv`` / ``.md``), every method against every other (``comparisons.md`` / ``.json``)
+and the results folder's ``README.md``; the paper's Table 2 numbers they are shown next to.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from experiments.cells import RunResult, cell_provenance
+from experiments.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for
+from experiments.stats import (FINAL_DEFINITION, first_step_reaching, fmt, fmt_p, mean_std, num_final_evaluations,
+                               stats_definition, t_interval, welch_test)
+
+# The paper's Table 2 (Xu et al., 2018): final return mean ± std, Meta vs DDPG; 3 seeds, gym v1 tasks.
+PAPER_TABLE2 = {
+    "inverted_double_pendulum": {"meta": (7718.0, 277.0), "ddpg": (2795.0, 1325.0)},
+    "inverted_pendulum": {"meta": (745.0, 27.0), "ddpg": (499.0, 23.0)},
+    "hopper": {"meta": (205.0, 41.0), "ddpg": (135.0, 42.0)},
+    "pendulum": {"meta": (-123.0, 10.0), "ddpg": (-206.0, 31.0)},
+    "halfcheetah": {"meta": (2011.0, 339.0), "ddpg": (1594.0, 298.0)},
+    "reacher": {"meta": (-12.16, 1.19), "ddpg": (-11.67, 3.39)},
+}
+PAPER_SEEDS = 3
+
+
+# ---------------------------------------------------------------------------------------------- Table 2
+
+def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str], baseline: str = BASELINE) -> list[dict]:
+    """One dict per task with, per method, the statistics of the finished runs (None: not run / incomplete)."""
+    rows = []
+    for task in tasks:
+        row = {"task": task, "methods": {}, "paper": PAPER_TABLE2.get(task)}
+        for method in methods:
+            r = results.get((task, method))
+            if r is None:
+                row["methods"][method] = {"status": "not run"}
+                continue
+            if not r.complete:
+                row["methods"][method] = {"status": "incomplete", "env_steps_done": r.env_steps_done,
+                                          "budget": r.budget}
+                continue
+            final = r.final()
+            mean, std = mean_std(final)
+            _, half = t_interval(final)
+            row["methods"][method] = {
+                "status": "done", "mean": mean, "std": std, "ci95_half_width": half,
+                "ci95": [mean - half, mean + half] if math.isfinite(half) else None,
+                "n": int(final.size), "budget": r.budget, "env_steps": r.env_steps_done,
+                "final_evaluations": num_final_evaluations(r.steps.size), "evaluations": int(r.steps.size),
+                "base_seed": r.run_args.get("seed"), "per_seed": [float(v) for v in final],
+                "run_commit": r.provenance.get("commit"), "backend": r.info.get("backend"),
+                "wall_seconds": cell_provenance(r)["wall_seconds"], "run_dir": r.path}
+        a, b = row["methods"].get(META, {}), row["methods"].get(baseline, {})
+        row["welch"] = None
+        if a.get("status") == "done" and b.get("status") == "done":
+            if a["budget"] == b["budget"]:  # never a test between cells of different budgets (mid-extension)
+                t, p = welch_test(a["per_seed"], b["per_seed"])
+                row["welch"] = {"t": t, "p": p, "difference": a["mean"] - b["mean"]}
+            else:
+                row["welch_skipped"] = "budgets differ"
+        rows.append(row)
+    return rows
+
+
+def _cell_text(cell: dict) -> str:
+    if cell["status"] == "not run":
+        return "not run"
+    if cell["status"] == "incomplete":
+        return f"incomplete ({cell['env_steps_done']:,} of {cell['budget']:,} steps)"
+    return f"{fmt(cell['mean'])} ± {fmt(cell['std'])}"
+
+
+def _ci_text(cell: dict) -> str:
+    if cell["status"] != "done":
+        return cell["status"] if cell["status"] == "not run" else "incomplete"
+    if cell["ci95"] is None:
+        return f"{fmt(cell['mean'])} (n={cell['n']}, no CI)"
+    lo, hi = cell["ci95"]
+    return f"[{fmt(lo)}, {fmt(hi)}] (n={cell['n']})"
+
+
+def _joined(values: dict) -> str:
+    """One value, or 'method: value' pairs when the methods differ."""
+    distinct = sorted(set(values.values()))
+    if not distinct:
+        return "—"
+    if len(distinct) == 1:
+        return f"{distinct[0]:,}"
+    return "; ".join(f"{METHOD_NAMES.get(m, m)}: {v:,}" for m, v in values.items())
+
+
+def budget_text(task: str, budgets: dict) -> str:
+    """The budget column: ``_joined`` budgets, flagged when a cell ran fewer steps than the paper's budget
+    (``envs.default_budget``: the paper's, rounded down to whole evaluation intervals), so that a
+    reduced-budget row is never read against the paper's full-budget numbers unmarked."""
+    from envs import default_budget, get_spec  # brax on import: only when a table is written
+
+    text = _joined(budgets)
+    if task in PAPER_TABLE2 and budgets and min(budgets.values()) < default_budget(task):
+        text += f" (reduced; paper: {get_spec(task).paper_budget:,})"
+    return text
+
+
+def engines_text(results: Iterable[RunResult]) -> str:
+    """How the stored MuJoCo cells were stepped: 'MJX', "MuJoCo's C engine" or both (pendulum is JAX)."""
+    physics = {r.config["env"].get("physics", "mjx") for r in results if r.task != "pendulum"}
+    names = {"mjx": "MJX", "mujoco": "MuJoCo's C engine"}
+    return " and ".join(names[p] for p in sorted(physics)) if physics else "MJX"
+
+
+def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str,
+                 build_commit: str | None = None, engines: str = "MJX") -> list[str]:
+    """table2.md, table2.json and table2_per_seed.csv from ``table2_rows``; returns the paths."""
+    os.makedirs(out_dir, exist_ok=True)
+    names = [METHOD_NAMES.get(m, m) for m in methods]
+    baseline = baseline_for(preset)
+    protocol = ("" if preset == "paper" else
+                f" The paper's numbers are for its own protocol (the paper preset's networks, noise and budgets), "
+                f"not for the {preset} preset: they are there for scale only.")
+    md = [f"# Table 2: final evaluation return ({preset} preset)", "",
+          f"Rows: tasks; columns: methods, mean ± std over the seeds run here, next to the paper's Table 2 "
+          f"(Meta / DDPG; {PAPER_SEEDS} seeds, gym v1 tasks, so not directly comparable: our tasks are gymnasium "
+          f"v5 models on {engines}). \"not run\": no finished run is stored for that cell (nothing is estimated); "
+          f"\"reduced\" in the budget column: fewer env steps per seed than the paper's budget."
+          + protocol, "",
+          f"- {FINAL_DEFINITION}.", f"- {stats_definition(baseline)}.", "",
+          "| task | " + " | ".join(names) + " | paper Meta | paper DDPG | budget (env steps / seed) | seeds run |",
+          "|---|" + "---|" * len(names) + "---|---|---|---|"]
+    for row in rows:
+        cells = [_cell_text(row["methods"][m]) for m in methods]
+        paper = row["paper"]
+        pm = f"{paper['meta'][0]:,g} ± {paper['meta'][1]:,g}" if paper else "—"  # as printed in the paper
+        pd = f"{paper['ddpg'][0]:,g} ± {paper['ddpg'][1]:,g}" if paper else "—"
+        done = {m: c for m, c in row["methods"].items() if c["status"] == "done"}
+        budget = budget_text(row["task"], {m: c["budget"] for m, c in done.items()})
+        seeds = _joined({m: c["n"] for m, c in done.items()})
+        md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " + " | ".join(cells) +
+                  f" | {pm} | {pd} | {budget} | {seeds} |")
+    md += ["", "## 95% confidence intervals and Welch's t-test", "",
+           "| task | " + " | ".join(names) + f" | Meta (ind.) − {METHOD_NAMES.get(baseline, baseline)} | Welch t | p |",
+           "|---|" + "---|" * len(names) + "---|---|---|"]
+    for row in rows:
+        w = row["welch"]
+        na = f"n/a ({row['welch_skipped']})" if row.get("welch_skipped") else "n/a"
+        tail = (f"{fmt(w['difference'])} | {fmt(w['t'], 2)} | {fmt_p(w['p'])}" if w else f"{na} | n/a | n/a")
+        md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
+                  " | ".join(_ci_text(row["methods"][m]) for m in methods) + f" | {tail} |")
+    md.append(footer)
+    paths = [os.path.join(out_dir, n) for n in ("table2.md", "table2.json", "table2_per_seed.csv")]
+    with open(paths[0], "w") as f:
+        f.write("\n".join(md))
+    with open(paths[1], "w") as f:
+        json.dump({"preset": preset, "baseline": baseline, "final_definition": FINAL_DEFINITION,
+                   "statistics": stats_definition(baseline),
+                   "paper_seeds": PAPER_SEEDS, "rows": rows}, f, indent=2, default=json_default)
+    with open(paths[2], "w", newline="") as f:
+        w = csv.writer(f)
+        # seed_index i is the run's seed i: PRNG key fold_in(PRNGKey(base_seed), i).
+        w.writerow(["task", "method", "seed_index", "final_return", "final_evaluations", "evaluations",
+                    "env_steps", "budget", "base_seed", "run_commit", "backend", "run_wall_seconds", "run_dir",
+                    "build_commit"])
+        for row in rows:
+            for m in methods:
+                c = row["methods"][m]
+                if c["status"] != "done":
+                    continue
+                for i, v in enumerate(c["per_seed"]):
+                    w.writerow([row["task"], m, i, repr(v), c["final_evaluations"], c["evaluations"],
+                                c["env_steps"], c["budget"], c["base_seed"], c["run_commit"] or "", c["backend"] or "",
+                                "" if c["wall_seconds"] is None else c["wall_seconds"], c["run_dir"],
+                                build_commit or ""])
+    return paths
+
+
+def json_default(x):
+    """``json.dump``'s ``default``: NumPy scalars and arrays as Python values."""
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    raise TypeError(type(x))
+
+
+# ---------------------------------------------------------------------------------------------- steps to threshold
+
+def steps_to_threshold_rows(results: dict, tasks: Sequence[str], methods: Sequence[str],
+                            baseline: str = BASELINE) -> list[dict]:
+    """Per task and method: first env step where the seed-mean curve reaches the DDPG baseline's best seed mean."""
+    rows = []
+    for task in tasks:
+        base = results.get((task, baseline))
+        if base is None:
+            continue
+        base_mean = np.nanmean(base.values, 0)
+        threshold = float(np.nanmax(base_mean))
+        base_step = first_step_reaching(base.steps, base_mean, threshold)
+        for m in methods:
+            r = results.get((task, m))
+            if r is None:
+                continue
+            step = first_step_reaching(r.steps, np.nanmean(r.values, 0), threshold)
+            rows.append({"task": task, "method": m, "threshold": threshold, "baseline_step": base_step,
+                         "step": step, "ratio": (step / base_step) if step is not None and base_step else None,
+                         "seeds": r.num_seeds, "env_steps_run": r.env_steps_done, "complete": r.complete,
+                         "baseline_complete": base.complete})
+    return rows
+
+
+def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset: str,
+                             build_commit: str | None = None) -> list[str]:
+    paths = [os.path.join(out_dir, "steps_to_threshold.csv"), os.path.join(out_dir, "steps_to_threshold.md")]
+    keys = ["task", "method", "threshold", "baseline_step", "step", "ratio", "seeds", "env_steps_run", "complete",
+            "baseline_complete"]
+    with open(paths[0], "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=keys + ["build_commit"])
+        w.writeheader()
+        for row in rows:
+            w.writerow({**{k: ("" if row[k] is None else row[k]) for k in keys}, "build_commit": build_commit or ""})
+    baseline = METHOD_NAMES.get(baseline_for(preset), baseline_for(preset))
+    md = [f"# Samples to reach the DDPG baseline's best ({preset} preset)", "",
+          f"Threshold: the best value over evaluations of the {baseline} seed-mean evaluation-return curve. "
+          "`step`: the first evaluation's env step at which a method's seed-mean curve reaches it; "
+          "`ratio` = step / DDPG's own step (the paper: Meta needs about 1/6 of DDPG's samples on "
+          "InvertedDoublePendulum). \"not reached\": never within the env steps run.", "",
+          "| task | method | threshold | step | DDPG step | ratio | env steps run | seeds |",
+          "|---|---|---|---|---|---|---|---|"]
+    for row in rows:
+        step = "not reached" if row["step"] is None else f"{row['step']:,}"
+        bstep = "n/a" if row["baseline_step"] is None else f"{row['baseline_step']:,}"
+        run = f"{row['env_steps_run']:,}" + ("" if row["complete"] else " (incomplete)")
+        ratio = "n/a" if row["ratio"] is None else f"{row['ratio']:.3f}"
+        md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | {METHOD_NAMES.get(row['method'], row['method'])} "
+                  f"| {fmt(row['threshold'])} | {step} | {bstep} | {ratio} | {run} | {row['seeds']} |")
+    if not rows:
+        md.append(f"| (no task has a {baseline} run) | | | | | | | |")
+    md.append(footer)
+    with open(paths[1], "w") as f:
+        f.write("\n".join(md))
+    return paths
+
+
+# ---------------------------------------------------------------------------------------------- comparisons
+
+def comparison_rows(results: dict, tasks: Sequence[str], methods: Sequence[str]) -> dict:
+    """Every method against every other, per task: the numbers docs/results.md quotes.
+
+    ``{"methods": [...], "pairs": [...]}``. Per finished cell: median, min and max of the seeds' final
+    returns, the best value of the seed-mean curve and its step, the mean of the seed-mean curve over all
+    evaluations. Per pair (a, b) of finished cells with the same budget (in ``methods`` order): the
+    difference of mean finals a − b, Welch's t and p, and at how many of their common evaluation steps the
+    seed-mean curve of a is above b's, and b's above a's."""
+    per_method, pairs = [], []
+    for task in tasks:
+        done = [m for m in methods if (task, m) in results and results[(task, m)].complete]
+        finals = {m: results[(task, m)].final() for m in done}
+        curves = {m: np.nanmean(results[(task, m)].values, 0) for m in done}  # seed-mean curves
+        for m in done:
+            r, final, curve = results[(task, m)], finals[m], curves[m]
+            best = int(np.nanargmax(curve))
+            per_method.append({"task": task, "method": m, "n": int(final.size), "budget": r.budget,
+                               "mean": float(final.mean()), "median": float(np.median(final)),
+                               "min": float(final.min()), "max": float(final.max()),
+                               "best_seed_mean": float(curve[best]), "best_seed_mean_step": int(r.steps[best]),
+                               "mean_over_evaluations": float(np.nanmean(curve)), "evaluations": int(r.steps.size)})
+        for i, a in enumerate(done):
+            for b in done[i + 1:]:
+                ra, rb = results[(task, a)], results[(task, b)]
+                if ra.budget != rb.budget:
+                    continue  # mid-extension: never compared across budgets (as table2_rows)
+                t, p = welch_test(finals[a], finals[b])
+                common, ia, ib = np.intersect1d(ra.steps, rb.steps, return_indices=True)
+                ca, cb = curves[a][ia], curves[b][ib]
+                pairs.append({"task": task, "a": a, "b": b, "budget": ra.budget,
+                              "difference": float(finals[a].mean() - finals[b].mean()), "t": t, "p": p,
+                              "a_above_b": int((ca > cb).sum()), "b_above_a": int((cb > ca).sum()),
+                              "common_evaluations": int(common.size)})
+    return {"methods": per_method, "pairs": pairs}
+
+
+def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
+                      build_commit: str | None = None) -> list[str]:
+    """comparisons.md and comparisons.json from ``comparison_rows``; returns the paths."""
+    paths = [os.path.join(out_dir, "comparisons.md"), os.path.join(out_dir, "comparisons.json")]
+    name = lambda m: METHOD_NAMES.get(m, m)
+    md = [f"# Every method against every other ({preset} preset)", "",
+          "The numbers docs/results.md quotes beyond `table2.md`, all from the same stored cells (finished "
+          "cells only; pairs only between cells of the same budget).", "",
+          f"- {FINAL_DEFINITION}.",
+          "- best seed mean: the highest value of the seed-mean evaluation curve, and the env step of that "
+          "evaluation; mean over evaluations: the seed-mean curve averaged over all its evaluations.",
+          "- a − b: difference of the mean final returns; p: two-sided Welch t-test of the seeds' final returns; "
+          "a above b (b above a): at how many of the evaluation steps both cells have the seed-mean curve of a "
+          "is strictly above b's (b's above a's)."]
+    for task in dict.fromkeys(r["task"] for r in comparisons["methods"]):
+        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
+               "| method | seeds | budget | mean final | median | min | max | best seed mean (step) | "
+               "mean over evaluations |", "|---|---|---|---|---|---|---|---|---|"]
+        for r in (r for r in comparisons["methods"] if r["task"] == task):
+            md.append(f"| {name(r['method'])} | {r['n']} | {r['budget']:,} | {fmt(r['mean'])} | {fmt(r['median'])} "
+                      f"| {fmt(r['min'])} | {fmt(r['max'])} | {fmt(r['best_seed_mean'])} "
+                      f"({r['best_seed_mean_step']:,}) | {fmt(r['mean_over_evaluations'])} |")
+        pairs = [p for p in comparisons["pairs"] if p["task"] == task]
+        if pairs:
+            md += ["", "| a | b | a − b | Welch t | p | a above b | b above a |", "|---|---|---|---|---|---|---|"]
+            for p in pairs:
+                md.append(f"| {name(p['a'])} | {name(p['b'])} | {fmt(p['difference'])} | {fmt(p['t'], 2)} | "
+                          f"{fmt_p(p['p'])} | {p['a_above_b']} of {p['common_evaluations']} | "
+                          f"{p['b_above_a']} of {p['common_evaluations']} |")
+    if not comparisons["methods"]:
+        md += ["", "(no finished cell is stored)"]
+    md.append(footer)
+    with open(paths[0], "w") as f:
+        f.write("\n".join(md))
+    with open(paths[1], "w") as f:
+        json.dump({"preset": preset, "final_definition": FINAL_DEFINITION, "build_commit": build_commit,
+                   **comparisons}, f, indent=2, default=json_default)
+    return paths
+
+
+# ---------------------------------------------------------------------------------------------- README
+
+def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequence[str], footer: str) -> str:
+    """``README.md``: what each artefact is, which cells were run, and the headline numbers."""
+    preset = manifest["build"]["preset"]
+    baseline = METHOD_NAMES.get(baseline_for(preset), baseline_for(preset))
+    cells = manifest["cells"]
+    done = [c for c in cells if c["complete"]]
+    have = set(manifest["files"])
+    lines = [f"# Results ({preset} preset)", "",
+             f"Rebuilt by `python -m experiments.reproduce --artefacts-only` (or `python -m experiments.artefacts`) "
+             f"from the run folders under `{manifest['build']['runs_dir']}/{preset}/<task>/<method>` (not committed) "
+             f"and, for cells without a finished run folder, the committed copies of finished cells in "
+             f"`cells/<task>/<method>` (config, metrics, summary, provenance, thinned visitation sample). "
+             f"{len(done)} finished and {len(cells) - len(done)} unfinished cells are stored; "
+             f"{len(manifest['not_run'])} cells of the grid were not run.", "",
+             "| file | content |", "|---|---|"]
+    desc = {
+        "table2.md": "the paper's Table 2: final return mean ± std per task and method, 95% CIs, Welch p "
+                     f"(Meta (independent) vs {baseline}), budget and seeds, next to the paper's numbers",
+        "table2.json": "the same, machine-readable (with per-seed final returns)",
+        "table2_per_seed.csv": "per-seed final returns of every finished cell",
+        "steps_to_threshold.md": "first env step at which each method's seed-mean curve reaches DDPG's best "
+                                 "(and the ratio to DDPG's step)",
+        "steps_to_threshold.csv": "steps-to-threshold as CSV (threshold, step, DDPG step, ratio per task and method)",
+        "comparisons.md": "every method against every other per task: medians, ranges, best seed means, "
+                          "differences, Welch p, at how many evaluations one seed-mean curve is above the other",
+        "comparisons.json": "the same, machine-readable",
+        "teacher_designs_idp.png": "Figure 2: independent vs variance teacher vs DDPG on InvertedDoublePendulum",
+        "manifest.json": "provenance: commit, machine, and per cell config, seeds, budget, wall time",
+    }
+    for f in manifest["files"]:
+        if f == "README.md":
+            continue
+        if f.startswith("curves_"):
+            d = f"Figure 3: learning curves on {f[7:-4]}, mean ± std over seeds per method"
+        elif f.startswith("visitation_"):
+            d = f"Figure 4: states visited by teacher, student and DDPG, early vs late, on {f[11:-4]}"
+        elif f.startswith("teacher_designs_"):
+            d = desc["teacher_designs_idp.png"] if f == "teacher_designs_idp.png" else "teacher designs vs DDPG"
+        else:
+            d = desc.get(f, "")
+        lines.append(f"| `{f}` | {d} |")
+    lines.append("| `manifest.json` | " + desc["manifest.json"] + " |")
+    if "teacher_designs_idp.png" not in have:
+        lines += ["", "No InvertedDoublePendulum run is stored, so `teacher_designs_idp.png` (Figure 2) is not built."]
+    if not any(f.startswith("visitation_") for f in have):
+        lines += ["", f"No task has both a Meta (independent) and a {baseline} run with `visits.npz`, so the "
+                      "state-visitation figure is not built."]
+    lines += ["", "## Final return (mean ± std over seeds; see `table2.md` for definitions and CIs)", "",
+              "| task | " + " | ".join(METHOD_NAMES.get(m, m) for m in methods) + " | Welch p |",
+              "|---|" + "---|" * len(methods) + "---|"]
+    for row in rows:
+        w = row["welch"]
+        lines.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
+                     " | ".join(_cell_text(row["methods"][m]) for m in methods) +
+                     f" | {fmt_p(w['p']) if w else row.get('welch_skipped', 'n/a')} |")
+    lines.append(footer)
+    path = os.path.join(out_dir, "README.md")
+    with open(path, "w") as f:
+        f.write("\n".join(lines))
+    return path

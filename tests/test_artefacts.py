@@ -1,0 +1,79 @@
+"""A rebuild from the committed cell archive gives the committed tables and JSON, byte for byte.
+
+``results`` (paper preset), ``results/modern`` and ``results/mujoco`` (paper preset on MuJoCo's C engine)
+each hold an archive of finished cells (``cells/<task>/<method>``) and what
+``python -m experiments.reproduce --artefacts-only --runs-dir runs/archived-only ...`` built from that
+archive alone (``runs/archived-only`` does not exist: every cell is read from the archive). Each is rebuilt
+here with ``experiments.artefacts.build_all`` into a tmp folder laid out like the repository (the paths in
+the JSON, ``run_dir`` and the manifest's cell ``path``, are relative to the folder the build ran in), and
+every ``.md``, ``.json`` and ``.csv`` it writes (tables, ``README.md``, ``manifest.json``) is compared byte
+for byte with the committed one.
+
+The numbers are deterministic; the build's provenance (``cells.build_info``: the local time, the commit
+and whether the tree had changes, the machine) is not, and it is in the footer of every ``.md``, the
+``build_commit`` columns and keys and ``manifest.json``'s ``build``. The test pins it to the committed
+manifest's ``build`` (which also holds the ``reproduce`` options recorded then), so that everything else is
+compared as written. Figures are not compared (PNG bytes depend on the matplotlib version; the visitation
+figure is drawn with PCA here, not the committed t-SNE, to be fast): each one the committed manifest lists
+must be written, and nothing else.
+
+Results built from run folders (``runs/reproduce``) carry those folders' paths: rebuild them from the archive
+(``--runs-dir runs/archived-only``) before committing them, as this test expects.
+"""
+
+import copy
+import json
+import os
+import shutil
+
+import pytest
+
+from experiments import artefacts, cells
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# committed folder -> (build_all's results_dir, preset) of the build that wrote it
+BUILDS = {"results": ("results", "paper"), "results/modern": ("results", "modern"),
+          "results/mujoco": ("results/mujoco", "paper")}
+
+
+def _first_difference(a: bytes, b: bytes) -> str:
+    lines_a, lines_b = a.decode().splitlines(), b.decode().splitlines()
+    for i, (x, y) in enumerate(zip(lines_a, lines_b), 1):
+        if x != y:
+            return f"line {i}:\n  rebuilt:   {x[:300]}\n  committed: {y[:300]}"
+    return f"{len(lines_a)} lines rebuilt, {len(lines_b)} committed"
+
+
+@pytest.mark.parametrize("folder", list(BUILDS), ids=["paper", "modern", "mujoco"])
+def test_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
+    results_dir, preset = BUILDS[folder]
+    committed = os.path.join(ROOT, folder)
+    with open(os.path.join(committed, "manifest.json")) as f:
+        stored = json.load(f)
+    build = stored["build"]
+    assert build["preset"] == preset
+    assert all(c["path"].startswith(f"{folder}/cells/") for c in stored["cells"]), \
+        f"{folder} was not built from its archive alone: rebuild it with --runs-dir runs/archived-only"
+    shutil.copytree(os.path.join(committed, "cells"), tmp_path / folder / "cells")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cells, "build_info", lambda runs_dir: copy.deepcopy(build))
+
+    manifest = artefacts.build_all(build["runs_dir"], results_dir, preset, embedding="pca")
+
+    assert not (tmp_path / build["runs_dir"]).exists()
+    assert manifest["files"] == stored["files"]
+    out = tmp_path / folder
+    written = {str(p.relative_to(out)) for p in out.rglob("*")
+               if p.is_file() and p.relative_to(out).parts[0] != "cells"}
+    assert written == set(stored["files"]) | {"manifest.json"}
+    compared = 0
+    for name in sorted(written):
+        rebuilt = (out / name).read_bytes()
+        if name.endswith(".png"):
+            assert rebuilt[:8] == b"\x89PNG\r\n\x1a\n", name
+            continue
+        with open(os.path.join(committed, name), "rb") as f:
+            want = f.read()
+        assert rebuilt == want, f"{folder}/{name} differs from the rebuild, {_first_difference(rebuilt, want)}"
+        compared += 1
+    assert compared >= 9  # table2 md/json/csv, steps_to_threshold csv/md, comparisons md/json, README, manifest
