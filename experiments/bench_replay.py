@@ -6,13 +6,19 @@ One "cycle" = add 100 transitions, then draw 50 minibatches of 64 (the paper
 preset's DDPG cycle without the networks). Both buffers run the same scan of
 cycles for ``--seeds`` seeds in one compiled program; the script prints
 compile time (a cold compile: no persistent compile cache) and the median steady-state time
-per cycle over repeats.
+per cycle over repeats, and records them (every repeat) in ``--json``
+(``results/benchmarks/benchmarks_replay.json`` by default: one row per buffer, seeds, capacity and
+date; a row measured again on the same date replaces the old one).
 flashbax is optional (``pip install flashbax``); without it only ours is timed.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.metadata
+import json
+import os
+import platform
 import statistics
 import time
 
@@ -82,7 +88,22 @@ def bench(name, factory, seeds, capacity, cycles, repeats):
     per_cycle_ms = 1e3 * statistics.median(times) / cycles
     print(f"{name:10s} seeds={seeds} capacity={capacity:,}: compile {compile_s:.2f} s, "
           f"{per_cycle_ms:.3f} ms per cycle (add 100 + 50 x sample 64), median of {repeats}")
-    return per_cycle_ms
+    return {"buffer": name, "seeds": seeds, "capacity": capacity, "cycles": cycles, "repeats": repeats,
+            "compile_s": compile_s, "ms_per_cycle": per_cycle_ms, "times_s": times}
+
+
+def record(path: str, rows: list[dict]) -> None:
+    """Adds ``rows`` to the JSON record at ``path`` (atomically), replacing rows of the same buffer,
+    seeds, capacity and date."""
+    from metapg_jax import reporting
+
+    old = []
+    if os.path.exists(path):
+        with open(path) as f:
+            old = json.load(f)["rows"]
+    key = lambda r: (r["buffer"], r["seeds"], r["capacity"], r["measured"])
+    new = {key(r) for r in rows}
+    reporting.write_json_atomic(path, {"rows": [r for r in old if key(r) not in new] + rows})
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -91,6 +112,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--capacity", type=int, default=100_000)
     p.add_argument("--cycles", type=int, default=200)
     p.add_argument("--repeats", type=int, default=5)
+    p.add_argument("--json", default=os.path.join("results", "benchmarks", "benchmarks_replay.json"),
+                   help="where the measured rows are recorded (default: %(default)s)")
     a = p.parse_args(argv)
     if min(a.seeds, a.cycles, a.repeats) <= 0:
         p.error("--seeds, --cycles and --repeats must be positive")
@@ -99,14 +122,19 @@ def main(argv: list[str] | None = None) -> int:
     from metapg_jax import compile_cache
 
     compile_cache.enable(None)  # cold compile times, whatever JAX_COMPILATION_CACHE_DIR says
-    ours = bench("ring", make_ours, a.seeds, a.capacity, a.cycles, a.repeats)
+    where = {"measured": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
+             "machine": f"{platform.machine()}, {os.cpu_count()} cores"}
+    rows = [{**bench("ring", make_ours, a.seeds, a.capacity, a.cycles, a.repeats), **where}]
     try:
         import flashbax  # noqa: F401
     except ImportError:
         print("flashbax not installed: only the ring buffer was timed")
-        return 0
-    fbx_ms = bench("flashbax", make_flashbax, a.seeds, a.capacity, a.cycles, a.repeats)
-    print(f"flashbax / ring time ratio: {fbx_ms / ours:.2f}")
+    else:
+        rows.append({**bench("flashbax", make_flashbax, a.seeds, a.capacity, a.cycles, a.repeats), **where,
+                     "flashbax": importlib.metadata.version("flashbax")})
+        print(f"flashbax / ring time ratio: {rows[1]['ms_per_cycle'] / rows[0]['ms_per_cycle']:.2f}")
+    record(a.json, rows)
+    print(f"recorded in {a.json}")
     return 0
 
 

@@ -1,5 +1,7 @@
 """experiments.bench's report writing (the measurements themselves are not unit-tested: timings)."""
 
+import json
+
 import pytest
 
 from experiments import bench
@@ -90,3 +92,17 @@ def test_replay_benchmark_refuses_sizes_it_cannot_time(capsys):
             bench_replay.main(argv)
         assert exc.value.code == 2, argv
     assert "--capacity must hold one cycle's 100 added transitions" in capsys.readouterr().err
+
+
+def test_replay_benchmark_records_rows_and_replaces_same_day_ones(tmp_path):
+    from experiments import bench_replay
+
+    path = str(tmp_path / "replay.json")
+    row = lambda buffer, capacity, ms, day="2026-12-01": {"buffer": buffer, "seeds": 8, "capacity": capacity,
+                                                         "measured": day, "ms_per_cycle": ms}
+    bench_replay.record(path, [row("ring", 100_000, 1.0), row("ring", 100_000, 3.0, "2026-11-23")])
+    bench_replay.record(path, [row("ring", 100_000, 2.0), row("flashbax", 100_000, 5.0)])
+    with open(path) as f:
+        rows = json.load(f)["rows"]
+    assert sorted((r["buffer"], r["measured"], r["ms_per_cycle"]) for r in rows) == [
+        ("flashbax", "2026-12-01", 5.0), ("ring", "2026-11-23", 3.0), ("ring", "2026-12-01", 2.0)]

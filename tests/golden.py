@@ -1,0 +1,97 @@
+"""Reference numbers of short runs of every method, for checking that a refactoring changes nothing.
+
+``tests/golden_numbers.json`` holds, per case, the evaluation returns of a tiny two-seed run of two
+chunks and a hash of the final student parameters, as the code computed them when the file was
+written (with the machine it was written on). ``tests/test_golden.py`` recomputes them. Rewrite the
+file only for a change that is meant to change the numbers, and say so in the commit:
+
+    python -m tests.golden --write
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import sys
+
+import jax
+import numpy as np
+
+from metapg_jax.config import make_config
+from metapg_jax.train import make_train, seed_keys, vmap_seeds
+from tests.helpers import tiny_config
+
+PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "golden_numbers.json")
+
+# name -> (env, method, preset, noise, teacher, physics)
+CASES = {
+    "pendulum-ddpg-adaptive-param": ("pendulum", "ddpg", "paper", "adaptive-param", None, "mjx"),
+    "pendulum-ddpg-normal": ("pendulum", "ddpg", "paper", "normal", None, "mjx"),
+    "pendulum-ddpg-ou": ("pendulum", "ddpg", "paper", "ou", None, "mjx"),
+    "pendulum-ddpg-none": ("pendulum", "ddpg", "paper", "none", None, "mjx"),
+    "pendulum-meta-independent": ("pendulum", "meta", "paper", None, "independent", "mjx"),
+    "pendulum-meta-variance": ("pendulum", "meta", "paper", None, "variance", "mjx"),
+    "pendulum-ddpg-modern": ("pendulum", "ddpg", "modern", None, None, "mjx"),
+    "pendulum-meta-modern": ("pendulum", "meta", "modern", None, None, "mjx"),
+    "idp-ddpg-adaptive-param-mujoco": ("inverted_double_pendulum", "ddpg", "paper", "adaptive-param", None, "mujoco"),
+    "idp-meta-independent-mujoco": ("inverted_double_pendulum", "meta", "paper", None, "independent", "mujoco"),
+}
+
+
+def case_config(name: str):
+    env, method, preset, noise, teacher, physics = CASES[name]
+    if preset == "paper":
+        overrides = {"noise.kind": noise} if noise else {}
+        if teacher:
+            overrides["meta.teacher"] = teacher
+        return tiny_config(method, env=env, physics=physics, **overrides)
+    return make_config(env, method, "modern", steps=600, physics=physics, overrides={
+        "run.eval_every": 300, "run.eval_episodes": 2, "ddpg.hidden": "16,16", "meta.hidden": "16,16",
+        "ddpg.batch_size": 16, "run.warmup_steps": 100, "meta.visit_samples": 64, "env.episode_length": 60,
+        **({"meta.explore_steps": 50, "meta.eval_steps": 100} if method == "meta" else {})})
+
+
+def compute(name: str) -> dict:
+    """Evaluation returns per chunk (seeds x episodes) and a hash of the final student parameters."""
+    trainer = make_train(case_config(name))
+    state = jax.jit(vmap_seeds(trainer.init))(seed_keys(7, 2))
+    chunk = jax.jit(vmap_seeds(trainer.train_chunk))
+    returns = []
+    for _ in range(trainer.config.num_chunks):
+        state, metrics = chunk(state)
+        returns.append(np.asarray(metrics["eval_return"]).tolist())
+    leaves = jax.tree.leaves(jax.device_get(state.student))
+    digest = hashlib.sha256(b"".join(np.ascontiguousarray(x).tobytes() for x in leaves)).hexdigest()
+    return {"eval_return": returns, "student_sha256": digest}
+
+
+def machine() -> dict:
+    """What decides whether float32 results can be equal bit for bit: the CPU and the JAX version."""
+    model = ""
+    if os.path.exists("/proc/cpuinfo"):
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith(("model name", "flags")):
+                    model += line.split(":", 1)[1].strip() + "\n"
+                if line.startswith("flags"):
+                    break
+    return {"cpu": hashlib.sha256(model.encode()).hexdigest()[:16], "processor": platform.machine(),
+            "jax": jax.__version__, "backend": jax.default_backend()}
+
+
+def main(argv: list[str]) -> int:
+    if argv != ["--write"]:
+        print(__doc__, file=sys.stderr)
+        return 2
+    numbers = {"machine": machine(), "cases": {name: compute(name) for name in CASES}}
+    with open(PATH, "w") as f:
+        json.dump(numbers, f, indent=1)
+        f.write("\n")
+    print(f"wrote {PATH}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
