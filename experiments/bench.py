@@ -84,7 +84,8 @@ def measure_one(spec: dict) -> dict:
     from metapg_jax import replay
     from metapg_jax.config import make_config
     from metapg_jax.rollout import rollout
-    from metapg_jax.train import make_train, seed_keys, train_updates, vmap_seeds
+    from metapg_jax.loop import train_updates
+    from metapg_jax.train import make_train, seed_keys, vmap_seeds
 
     rss_base = _rss_mib()
     overrides = dict(spec.get("overrides", {}))
@@ -110,7 +111,7 @@ def measure_one(spec: dict) -> dict:
     state = jax.jit(vmap_seeds(trainer.init))(keys)
     t = time.perf_counter()
     # plain_vmap: an unnamed seed axis, so episode-start branches run for every seed at every step
-    # (the numbers are the same; see metapg_jax.train.any_over_seeds): the 'before' of that change.
+    # (the numbers are the same; see metapg_jax.loop.any_over_seeds): the 'before' of that change.
     seed_vmap = jax.vmap if spec.get("plain_vmap") else vmap_seeds
     full = jax.jit(seed_vmap(cycles_fn), donate_argnums=0).lower(state).compile()
     compile_s = time.perf_counter() - t
@@ -144,11 +145,11 @@ def measure_one(spec: dict) -> dict:
     env_s, env_times = _timed(env_fn, (state.env_state, keys), repeats)
 
     # -- the same number of DDPG updates alone, on the filled buffer ---------------------------
-    ddpg = trainer.ddpg
+    learner = trainer.student
 
     def updates_only(st, key):
         sample = lambda k: replay.sample(st.buffer, k, cfg.ddpg.batch_size)
-        student, metrics = train_updates(ddpg, st.student, st.normalizer, sample, key,
+        student, metrics = train_updates(learner, st.student, st.normalizer, sample, key,
                                             cycles * updates_per_cycle)
         return student, metrics
 

@@ -35,7 +35,8 @@ def main(argv: list[str] | None = None) -> int:
     from metapg_jax import config as config_lib
     from metapg_jax.checkpoint import Checkpointer, saved_steps
     from metapg_jax.policy import export_policies
-    from metapg_jax.train import checkpoint_shapes, make_train, seed_keys
+    from metapg_jax.loop import checkpoint_shapes
+    from metapg_jax.train import make_train, seed_keys
 
     steps = saved_steps(os.path.join(args.run_dir, "checkpoints"))
     if not steps or (args.chunk is not None and args.chunk not in steps):

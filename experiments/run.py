@@ -332,7 +332,8 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
 
     from metapg_jax import reporting, replay
     from metapg_jax.checkpoint import Checkpointer
-    from metapg_jax.train import SEED_AXIS, checkpoint_shapes, make_train, seed_keys, vmap_seeds
+    from metapg_jax.loop import SEED_AXIS, checkpoint_shapes
+    from metapg_jax.train import make_train, seed_keys, vmap_seeds
 
     num_seeds, seed = a["seeds"], a["seed"]
     main_process = jax.process_index() == 0

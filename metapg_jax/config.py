@@ -32,7 +32,20 @@ from typing import Any
 
 import envs
 
-METHODS = ("ddpg", "meta")
+METHODS = ("ddpg", "meta")  # the built-in explorers; metapg_jax.explorers.register adds more
+_REGISTERED_METHODS: set[str] = set()
+
+
+def register_method(name: str) -> None:
+    """Lets ``validate`` accept ``run.method == name`` (called by ``metapg_jax.explorers.register``).
+    A registered method's cycle stores ``run.rollout_steps`` steps, like the DDPG baseline's."""
+    _REGISTERED_METHODS.add(name)
+
+
+def _check_method(method: str) -> None:
+    if method not in METHODS and method not in _REGISTERED_METHODS:
+        valid = ", ".join([*METHODS, *sorted(_REGISTERED_METHODS - set(METHODS))])
+        raise ValueError(f"unknown method {method!r}; valid methods: {valid}")
 PRESETS = ("paper", "modern")
 NOISES = ("normal", "ou", "adaptive-param", "none")
 TEACHERS = ("independent", "variance")
@@ -129,7 +142,7 @@ class Config:
     # Derived values, computed once.
     @property
     def steps_per_cycle(self) -> int:
-        if self.run.method == "ddpg":
+        if self.run.method != "meta":  # the baseline's cycle (and a registered explorer's)
             return self.run.rollout_steps
         m = self.meta
         fresh = m.eval_steps * m.eval_envs if m.baseline == "fresh" else 0
@@ -160,8 +173,7 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
     spec = envs.get_spec(env)
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; valid presets: {', '.join(PRESETS)}")
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; valid methods: {', '.join(METHODS)}")
+    _check_method(method)
     meta = MetaConfig(explore_steps=spec.explore_steps, eval_steps=spec.eval_steps,
                       teacher_steps=spec.teacher_steps)
     if teacher is not None:
@@ -290,8 +302,7 @@ def validate(cfg: Config) -> Config:
     if cfg.env.source not in envs.SOURCES:
         raise ValueError(f"unknown source {cfg.env.source!r}; valid sources: {', '.join(envs.SOURCES)}")
     envs.check_physics(cfg.env.name, cfg.env.source, cfg.env.physics)
-    if cfg.run.method not in METHODS:
-        raise ValueError(f"unknown method {cfg.run.method!r}; valid methods: {', '.join(METHODS)}")
+    _check_method(cfg.run.method)
     if cfg.preset not in PRESETS:
         raise ValueError(f"unknown preset {cfg.preset!r}; valid presets: {', '.join(PRESETS)}")
     if cfg.noise.kind not in NOISES:

@@ -35,25 +35,40 @@ Our readings where the paper gives no number or procedure (also in docs/algorith
   ``eval_steps``: on the 1000-step tasks a 200-step partial return (2000 steps
   on IP/HalfCheetah, i.e. whole episodes).
 * The teacher's env is not reset between cycles: D0 continues its episodes.
+
+``TeacherExplorer`` is this cycle as an explorer (``metapg_jax.explorers``): the teacher explores, and
+what it does with its data is the look-ahead, the meta reward and the REINFORCE step.
 """
 
 from __future__ import annotations
+
+import dataclasses
 
 import jax
 import jax.numpy as jnp
 
 from metapg_jax import visits as visits_lib
+from metapg_jax.config import MetaConfig
+from metapg_jax.loop import TrainState, Trainer, flatten_time, train_updates
 from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.teacher import Teacher, TeacherState
-from metapg_jax.train import TrainState, Trainer, flatten_time, train_updates
 
 
 def make_teacher(trainer: Trainer) -> Teacher:
-    return Teacher(trainer.config.meta, trainer.ddpg)
+    return Teacher(trainer.config.meta, trainer.student)
 
 
-def init_state(trainer: Trainer, state: TrainState, key: jax.Array) -> TrainState:
-    return state.replace(explorer=make_teacher(trainer).init(key))
+@dataclasses.dataclass(frozen=True)
+class TeacherExplorer:
+    """Algorithm 1's teacher as the explorer: ``init`` builds the teacher, ``cycle`` is ``meta_cycle``."""
+
+    cfg: MetaConfig
+
+    def init(self, trainer: Trainer, student, key: jax.Array) -> TeacherState:
+        return make_teacher(trainer).init(key)
+
+    def cycle(self, trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
+        return meta_cycle(trainer, state)
 
 
 def first_episode_return(rewards: jax.Array, dones: jax.Array) -> jax.Array:
@@ -71,7 +86,7 @@ def student_rollout(trainer: Trainer, actor, normalizer, key: jax.Array):
     Returns (flat transitions (eval_envs * eval_steps), R_hat = mean first-episode return).
     """
     cfg = trainer.config.meta
-    act = trainer.ddpg.deterministic_policy(actor, normalizer)
+    act = trainer.student.deterministic_policy(actor, normalizer)
     policy = lambda carry, obs, first, k: (act(obs), carry, None)
     k_reset, k_roll = jax.random.split(key)
     env_states = jax.vmap(trainer.env.reset)(jax.random.split(k_reset, cfg.eval_envs))
@@ -87,7 +102,7 @@ def student_rollout(trainer: Trainer, actor, normalizer, key: jax.Array):
 
 def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     """One meta-iteration of Algorithm 1 (module docstring)."""
-    cfg, ddpg = trainer.config, trainer.ddpg
+    cfg, ddpg = trainer.config, trainer.student
     m = cfg.meta
     teacher = make_teacher(trainer)
     tstate: TeacherState = state.explorer

@@ -12,18 +12,26 @@ All three as in the 2018 OpenAI-baselines DDPG (``baselines/ddpg/noise.py``,
   actor on a replay minibatch, and sigma is divided by ``adapt_coef`` if the
   action distance sqrt(mean((mu - mu~)^2)) exceeds the desired stddev, and
   multiplied by it otherwise.
+
+``NoiseExplorer`` is the DDPG baseline's explorer (``metapg_jax.explorers``): its cycle is
+``rollout_steps`` steps of the noisy actor, stored, then ``train_steps`` student updates (with the
+stddev adaptation between blocks of ``adapt_every`` of them for adaptive parameter noise).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Callable
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
+from metapg_jax import visits as visits_lib
 from metapg_jax.config import NoiseConfig
+from metapg_jax.loop import TrainState, Trainer, any_over_seeds
 from metapg_jax.networks import is_layer_norm_path
+from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.types import Params
 
 
@@ -89,3 +97,51 @@ def adapt(cfg: NoiseConfig, state: NoiseState, actor_apply: Callable, actor_para
     distance = jnp.sqrt(jnp.mean(jnp.square(diff)))
     stddev = jnp.where(distance > cfg.stddev, state.stddev / cfg.adapt_coef, state.stddev * cfg.adapt_coef)
     return state.replace(stddev=stddev, distance=distance)
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseExplorer:
+    """The DDPG baselines' exploration: the student's actor plus noise (``config.noise``)."""
+
+    cfg: NoiseConfig
+
+    def init(self, trainer: Trainer, student, key: jax.Array) -> NoiseState:
+        return init(self.cfg, student.actor, trainer.student.action_size)
+
+    def cycle(self, trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
+        """The baseline's cycle: ``rollout_steps`` noisy-actor steps, then ``train_steps`` updates."""
+        cfg, run, learner = self.cfg, trainer.config.run, trainer.student
+        key, k_roll, k_train = jax.random.split(state.key, 3)
+        warm = state.env_steps < run.warmup_steps
+        actor, normalizer = state.student.actor, state.normalizer
+
+        def policy(carry, obs, first, k):
+            k_reset, k_act, k_rand = jax.random.split(k, 3)
+            # Episode starts are rare: the new perturbation (adaptive-param) is drawn only on steps
+            # where some seed starts an episode (any_over_seeds), and kept only for those seeds.
+            carry = jax.lax.cond(
+                any_over_seeds(first),
+                lambda: jax.tree.map(lambda new, old: jnp.where(first, new, old),
+                                     episode_start(cfg, carry, actor, k_reset), carry),
+                lambda: carry)
+            action, carry = act(cfg, carry, learner.actor_apply, actor, learner.normalize(normalizer, obs), k_act)
+            return jnp.where(warm, trainer.random_action(k_rand), action), carry, None
+
+        env_state, explorer, transitions, stats, _ = rollout(
+            trainer.env, policy, state.env_state, state.explorer, k_roll, run.rollout_steps)
+        state = trainer.store(state.replace(env_state=env_state, explorer=explorer, key=key,
+                                            visits=visits_lib.record(state.visits, explore_obs=transitions.obs)),
+                              transitions)
+
+        if cfg.kind == "adaptive-param":
+            def between(noise_state, student, batch, k):
+                obs = learner.normalize(state.normalizer, batch.obs)
+                return adapt(cfg, noise_state, learner.actor_apply, student.actor, obs, k)
+
+            state, train_metrics = trainer.student_updates(state, k_train, run.train_steps, between, cfg.adapt_every)
+        else:
+            state, train_metrics = trainer.student_updates(state, k_train, run.train_steps)
+        ret_mean, n_eps = completed_episode_mean(stats)
+        metrics = {**train_metrics, "train_return": ret_mean, "train_episodes": n_eps,
+                   "param_noise_stddev": state.explorer.stddev, "param_noise_distance": state.explorer.distance}
+        return state, metrics

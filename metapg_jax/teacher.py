@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import Any
 
 import jax
 import jax.numpy as jnp
@@ -31,7 +32,6 @@ import optax
 from flax import struct
 
 from metapg_jax.config import MetaConfig
-from metapg_jax.ddpg import DDPG
 from metapg_jax.networks import MLP
 from metapg_jax.types import Params
 
@@ -51,11 +51,11 @@ class TeacherState:
 @dataclasses.dataclass(frozen=True)
 class Teacher:
     cfg: MetaConfig
-    ddpg: DDPG
+    student: Any  # the learner whose actor the variance teacher's mean is (metapg_jax.loop: the student interface)
 
     @property
     def action_size(self) -> int:
-        return self.ddpg.action_size
+        return self.student.action_size
 
     @property
     def optimizer(self) -> optax.GradientTransformation:
@@ -78,7 +78,7 @@ class Teacher:
 
     def init(self, key: jax.Array) -> TeacherState:
         """Parameters: {'mean': MLP, 'log_std': MLP} (independent), {'log_std': MLP or vector} (variance)."""
-        obs = jnp.zeros((self.ddpg.obs_size,), jnp.float32)
+        obs = jnp.zeros((self.student.obs_size,), jnp.float32)
         k_mean, k_std = jax.random.split(key)
         if self.cfg.teacher == "variance" and not self.cfg.state_dependent_std:
             params = {"log_std": jnp.full((self.action_size,), self.raw_init_log_std(), jnp.float32)}
@@ -96,7 +96,7 @@ class Teacher:
             mean = self._mean_net().apply(params["mean"], obs_normalized)
         else:
             # Variance teacher: the student's action is the mean; no gradient reaches the student.
-            mean = jax.lax.stop_gradient(self.ddpg.actor_apply(student_actor, obs_normalized))
+            mean = jax.lax.stop_gradient(self.student.actor_apply(student_actor, obs_normalized))
         if isinstance(params["log_std"], dict):
             raw = self._log_std_net().apply(params["log_std"], obs_normalized)
         else:

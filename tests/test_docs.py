@@ -71,3 +71,26 @@ def test_console_scripts_are_the_modules_main_functions():
         module, _, func = target.partition(":")
         assert name == "metapg-" + module.split(".")[-1] and func == "main", (name, target)
         assert callable(getattr(importlib.import_module(module), func))
+
+
+def test_the_explorer_example_of_running_md_trains(monkeypatch):
+    import dataclasses
+
+    import jax
+
+    from metapg_jax import config as config_lib
+    from metapg_jax import explorers
+    from metapg_jax.train import make_train, seed_keys, vmap_seeds
+
+    monkeypatch.setattr(explorers, "_FACTORIES", dict(explorers._FACTORIES))  # no registration leaks out
+    monkeypatch.setattr(config_lib, "_REGISTERED_METHODS", set(config_lib._REGISTERED_METHODS))
+    text = read("docs/running.md")
+    block = text[text.index("## Writing an explorer"):]
+    namespace = {}
+    exec(re.search(r"```python\n(.*?)```", block, re.S).group(1), namespace)
+    cfg = namespace["cfg"]
+    cfg = dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, total_steps=400, eval_every=200, eval_episodes=1))
+    trainer = make_train(cfg)
+    state = jax.jit(vmap_seeds(trainer.init))(seed_keys(0, 2))
+    state, metrics = jax.jit(vmap_seeds(trainer.train_chunk))(state)
+    assert metrics["eval_return"].shape == (2, 1) and int(state.env_steps[0]) == 200

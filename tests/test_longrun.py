@@ -354,7 +354,7 @@ def _check_exported_policy(reference, trainer, state, key):
         expected, _ = trainer.evaluate(s, key)
         policy = load_policy(os.path.join(reference, "policy.npz"), seed=seed)
         obs = np.random.default_rng(0).normal(size=(50, 3)).astype(np.float32)
-        jax_act = jax.vmap(trainer.ddpg.deterministic_policy(s.student.actor, s.normalizer))(obs)
+        jax_act = jax.vmap(trainer.student.deterministic_policy(s.student.actor, s.normalizer))(obs)
         np.testing.assert_allclose(policy(obs), jax_act, atol=1e-5)
 
         def act(o):

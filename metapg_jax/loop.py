@@ -1,0 +1,251 @@
+"""The training loop: the per-seed ``TrainState`` and the ``Trainer`` that advances it.
+
+A ``Trainer`` holds the config, the env, a *student* (the off-policy learner; ``metapg_jax.ddpg.DDPG``)
+and an *explorer* (who collects the student's data: ``metapg_jax.noise.NoiseExplorer`` for the DDPG
+baselines, ``metapg_jax.meta.TeacherExplorer`` for Algorithm 1; ``metapg_jax.explorers``). It gives
+
+* ``init(key) -> TrainState`` for one seed;
+* ``train_chunk(state) -> (state, metrics)``: a ``lax.scan`` over
+  ``cycles_per_chunk`` cycles followed by one evaluation;
+* ``train(key) -> (state, metrics)``: ``init`` and a scan over all chunks, one
+  program for the whole run;
+
+and the building blocks an explorer's cycle is made of: ``store`` (buffer, normaliser, sample count),
+``student_updates`` (the student's updates on replay minibatches, with an optional hook between
+blocks of updates), ``random_action``, ``evaluate``. A *cycle* is the explorer's: the baseline's
+``rollout_steps`` noisy-actor steps then ``train_steps`` updates, or one meta-iteration of
+Algorithm 1. This module imports no explorer: ``metapg_jax.train.make_train`` puts the pieces
+together.
+
+Both paths give the same numbers for the same key. Seeds are a ``jax.vmap``
+over keys of these functions; the host (``experiments.run``) jits the vmapped
+``train_chunk`` once and calls it once per evaluation interval. Vmap with
+``vmap_seeds`` (``axis_name=SEED_AXIS``): the numbers are the same with a plain
+``jax.vmap``, but rare per-env events (a new parameter-noise perturbation at an
+episode start) are then computed at every step (see ``any_over_seeds``).
+
+The student interface (what the loop and the explorers use of a learner): ``init(key)`` -> a state with
+``actor`` (and ``critic``) parameters; ``normalize(normalizer, obs)``; ``actor_apply(actor, obs_n)``
+(actions in [-1, 1]); ``deterministic_policy(actor, normalizer)`` (for D1, evaluation and export);
+``update(state, normalizer, batch) -> (state, metrics)``; ``obs_size``, ``action_size``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+from brax.envs.base import Env, State
+from flax import struct
+
+from metapg_jax import normalizer as norm_lib
+from metapg_jax import replay
+from metapg_jax import visits as visits_lib
+from metapg_jax.config import Config
+from metapg_jax.ddpg import StudentState
+from metapg_jax.evaluate import evaluate
+from metapg_jax.types import Transition
+
+
+@struct.dataclass
+class TrainState:
+    student: StudentState
+    normalizer: norm_lib.NormalizerState
+    buffer: replay.ReplayState
+    env_state: State                 # the exploring env (episodes continue across cycles)
+    explorer: Any                    # the explorer's state (NoiseState, TeacherState, ...)
+    visits: visits_lib.VisitState    # bounded sample of visited states (state-visitation figure)
+    key: jax.Array
+    env_steps: jax.Array             # int32: stored env steps so far (the sample budget)
+    updates: jax.Array               # int32: student updates so far
+    cycles: jax.Array                # int32
+
+
+def all_finite(state: TrainState) -> jax.Array:
+    """NaN/inf guard, computed inside the program: are the student's (and teacher's) parameters finite?
+
+    Returned per cycle in the metrics, so the host learns of a bad seed at the
+    next chunk boundary without any host sync inside the chunk.
+    """
+    trees = [state.student.actor, state.student.critic]
+    if hasattr(state.explorer, "params"):
+        trees.append(state.explorer.params)
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(trees)]))
+
+
+SEED_AXIS = "seeds"
+
+
+def vmap_seeds(fn, **kwargs):
+    """``jax.vmap`` over the seed axis, named ``SEED_AXIS`` (see ``any_over_seeds``)."""
+    return jax.vmap(fn, axis_name=SEED_AXIS, **kwargs)
+
+
+def any_over_seeds(flag: jax.Array) -> jax.Array:
+    """Whether ``flag`` holds for any seed of the batch: an unbatched predicate for ``lax.cond``.
+
+    Under ``vmap`` a ``lax.cond`` on a per-seed predicate becomes a ``select`` that computes both
+    branches for every seed at every call. ``lax.cond(any_over_seeds(p), lambda: where(p, a(), b),
+    lambda: b)`` gives the same values and runs ``a`` only when some seed needs it. Outside a
+    ``vmap_seeds`` (one seed, or a plain ``jax.vmap``) the axis is unbound and ``flag`` is returned.
+    """
+    try:
+        return jax.lax.pmax(flag.astype(jnp.int32), SEED_AXIS) > 0
+    except NameError:  # no vmap named SEED_AXIS around this trace
+        return flag
+
+
+def seed_keys(seed: int, num_seeds: int) -> jax.Array:
+    """One key per seed; seed i's key does not depend on how many seeds run."""
+    base = jax.random.PRNGKey(seed)
+    return jnp.stack([jax.random.fold_in(base, i) for i in range(num_seeds)])
+
+
+def flatten_time(tree):
+    """Merges the two leading axes (e.g. time x envs) of every leaf."""
+    return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), tree)
+
+
+def train_updates(learner, student: StudentState, normalizer, sample, key: jax.Array, num: int):
+    """``num`` updates of ``learner`` (the student) with minibatches from ``sample(key)``; returns the mean metrics."""
+
+    def step(st, k):
+        return learner.update(st, normalizer, sample(k))
+
+    student, metrics = jax.lax.scan(step, student, jax.random.split(key, num))
+    return student, jax.tree.map(jnp.mean, metrics)
+
+
+@dataclasses.dataclass(frozen=True)
+class Trainer:
+    config: Config
+    env: Env
+    student: Any    # the learner (module docstring: the student interface); metapg_jax.ddpg.DDPG
+    explorer: Any   # metapg_jax.explorers.Explorer: init(trainer, key) and cycle(trainer, state)
+
+    # ------------------------------------------------------------------ init
+    def init(self, key: jax.Array) -> TrainState:
+        cfg = self.config
+        k_student, k_env, k_explorer, key = jax.random.split(key, 4)
+        student = self.student.init(k_student)
+        env_state = self.env.reset(k_env)
+        state = TrainState(
+            student=student,
+            normalizer=norm_lib.init(self.student.obs_size),
+            buffer=replay.init(cfg.buffer_capacity, self.student.obs_size, self.student.action_size),
+            env_state=env_state,
+            explorer=None,
+            visits=visits_lib.init(cfg.meta.visit_samples, self.student.obs_size),
+            key=key,
+            env_steps=jnp.zeros((), jnp.int32),
+            updates=jnp.zeros((), jnp.int32),
+            cycles=jnp.zeros((), jnp.int32),
+        )
+        return state.replace(explorer=self.explorer.init(self, student, k_explorer))
+
+    # ------------------------------------------------------------------ building blocks of a cycle
+    def store(self, state: TrainState, transitions: Transition) -> TrainState:
+        """Adds a flat batch of transitions to the buffer and the normaliser; counts them."""
+        n = transitions.reward.shape[0]
+        return state.replace(
+            buffer=replay.add(state.buffer, transitions),
+            normalizer=norm_lib.update(state.normalizer, transitions.obs),
+            env_steps=state.env_steps + n,
+        )
+
+    def can_update(self, state: TrainState) -> jax.Array:
+        """Updates start once the warm-up is over and the buffer holds a minibatch."""
+        return jnp.logical_and(state.env_steps >= self.config.run.warmup_steps,
+                               state.buffer.size >= self.config.ddpg.batch_size)
+
+    def random_action(self, key: jax.Array) -> jax.Array:
+        return jax.random.uniform(key, (self.student.action_size,), jnp.float32, -1.0, 1.0)
+
+    def student_updates(self, state: TrainState, key: jax.Array, num: int, between=None, block: int = 0):
+        """``num`` updates of the student on replay minibatches (skipped during warm-up).
+
+        ``between(explorer_state, student_state, minibatch, key) -> explorer_state``, if given, runs
+        before updates 0, block, 2 block, ... of the ``num`` (on a replay minibatch of its own): the
+        hook through which adaptive parameter noise adapts its stddev as baselines does within each
+        cycle (``t_train % param_noise_adaption_interval == 0``). The positions are static, so no
+        per-update conditional is needed.
+        """
+        cfg = self.config
+        block = block if between is not None else num
+        sample = lambda k: replay.sample(state.buffer, k, cfg.ddpg.batch_size)
+
+        def run(_):
+            student, explorer = state.student, state.explorer
+            metrics, weights = [], []
+            for start in range(0, num, block):
+                n = min(block, num - start)
+                k_upd, k_between, k_batch = jax.random.split(jax.random.fold_in(key, start), 3)
+                if between is not None:
+                    explorer = between(explorer, student, sample(k_batch), k_between)
+                student, m = train_updates(self.student, student, state.normalizer, sample, k_upd, n)
+                metrics.append(m)
+                weights.append(n / num)
+            mean = jax.tree.map(lambda *xs: sum(w * x for w, x in zip(weights, xs)), *metrics)
+            return student, explorer, state.updates + num, mean
+
+        def skip(_):
+            nan = jnp.full((), jnp.nan, jnp.float32)
+            return state.student, state.explorer, state.updates, {
+                "critic_loss": nan, "actor_loss": nan, "q_mean": nan, "td_loss": nan}
+
+        # A real conditional (any_over_seeds), not the per-seed select that vmap makes of a batched
+        # predicate: the updates are skipped during warm-up, and the minibatch gathers stay inside the
+        # branch, apart from the buffer write before them. Fused with that write, they made XLA copy the
+        # whole replay buffer at every cycle (the modern preset's one-step cycles ran at half speed).
+        ok = self.can_update(state)
+        student, explorer, updates, metrics = jax.lax.cond(
+            any_over_seeds(ok),
+            lambda _: jax.tree.map(lambda a, b: jnp.where(ok, a, b), run(None), skip(None)), skip, None)
+        return state.replace(student=student, explorer=explorer, updates=updates), metrics
+
+    def cycle(self, state: TrainState) -> tuple[TrainState, dict]:
+        """One cycle of the explorer (collect, and whatever the explorer does with the data) and the NaN guard."""
+        state, metrics = self.explorer.cycle(self, state)
+        metrics["finite"] = all_finite(state)
+        return state.replace(cycles=state.cycles + 1), metrics
+
+    # ------------------------------------------------------------------ chunks
+    def evaluate(self, state: TrainState, key: jax.Array) -> tuple[jax.Array, jax.Array]:
+        act = self.student.deterministic_policy(state.student.actor, state.normalizer)
+        return evaluate(self.env, act, key, self.config.run.eval_episodes, self.config.episode_length)
+
+    def train_chunk(self, state: TrainState) -> tuple[TrainState, dict]:
+        """``cycles_per_chunk`` cycles in one scan, then one evaluation."""
+        state, cycle_metrics = jax.lax.scan(lambda s, _: self.cycle(s), state, None,
+                                            length=self.config.cycles_per_chunk)
+        key, k_eval = jax.random.split(state.key)
+        state = state.replace(key=key)
+        eval_return, eval_length = self.evaluate(state, k_eval)
+        metrics = {"env_steps": state.env_steps, "updates": state.updates,
+                   "eval_return": eval_return, "eval_length": eval_length, "cycle": cycle_metrics}
+        return state, metrics
+
+    def train(self, key: jax.Array) -> tuple[TrainState, dict]:
+        """The whole run as one scan over chunks (same numbers as the chunked host loop)."""
+        state = self.init(key)
+        return jax.lax.scan(lambda s, _: self.train_chunk(s), state, None, length=self.config.num_chunks)
+
+
+def checkpoint_shapes(trainer: Trainer, keys: jax.Array):
+    """``Checkpointer.restore``'s ``abstract_state`` for a run's seed-batched checkpoints: the trainer's
+    state shapes, with the replay capacity of the config each checkpoint was written with (a run
+    extended to a larger budget keeps checkpoints of the smaller capacity; ``replay.grow`` widens them)."""
+    from metapg_jax.config import from_dict
+
+    abstract = jax.eval_shape(vmap_seeds(trainer.init), keys)
+
+    def shapes(meta: dict):
+        capacity = from_dict(meta["config"]).buffer_capacity
+        if capacity == trainer.config.buffer_capacity:
+            return abstract
+        obs, act = trainer.student.obs_size, trainer.student.action_size
+        return abstract.replace(buffer=jax.eval_shape(jax.vmap(lambda _: replay.init(capacity, obs, act)), keys))
+
+    return shapes
