@@ -54,7 +54,7 @@ TEACHER_CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_
 # Arguments that define the run; stored in config.json so --resume can rebuild and compare it.
 RUN_ARGS = {"env": "pendulum", "method": "meta", "teacher": None, "preset": "paper", "noise": None,
             "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "mjx",
-            "overrides": []}
+            "student": "ddpg", "overrides": []}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -67,6 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="'meta' (the paper's learned teacher, default) or 'ddpg' (noise baseline)")
     p.add_argument("--teacher", default=None,
                    help="meta teacher design: 'independent' (the paper's best; default) or 'variance'")
+    p.add_argument("--student", default=None,
+                   help="the off-policy learner: 'ddpg' (default) or 'td3' (Fujimoto et al., 2018; with "
+                        "--preset=modern the TD3 authors' settings, 25k random warm-up steps for the baselines)")
     p.add_argument("--preset", default=None,
                    help="'paper' (2018 baselines DDPG; default) or 'modern' (256-256, 1 update/step)")
     p.add_argument("--noise", default=None,
@@ -148,7 +151,8 @@ def config_from_run_args(a: dict) -> config_lib.Config:
         raise ValueError("--noise applies to --method=ddpg only (meta explores with its teacher)")
     cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], noise=a["noise"],
                                  steps=a["steps"], source=a["source"], teacher=a["teacher"],
-                                 overrides=parse_overrides(a["overrides"]), physics=a["physics"])
+                                 overrides=parse_overrides(a["overrides"]), physics=a["physics"],
+                                 student=a["student"])
     return config_lib.validate(cfg)
 
 
@@ -161,7 +165,8 @@ def _physics_label(cfg: config_lib.Config) -> str:
 def run_label(cfg: config_lib.Config) -> str:
     """E.g. 'pendulum meta/independent' or 'hopper ddpg/adaptive-param'."""
     detail = cfg.meta.teacher if cfg.run.method == "meta" else cfg.noise.kind
-    return f"{cfg.env.name} {cfg.run.method}/{detail}"
+    student = "" if cfg.student == "ddpg" else f" ({cfg.student})"
+    return f"{cfg.env.name} {cfg.run.method}/{detail}{student}"
 
 
 def check_devices(num_seeds: int) -> None:
@@ -232,7 +237,9 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
         a = run_args(args)
         cfg = config_from_run_args(a)
         engine = "-mujoco" if cfg.env.physics == "mujoco" else ""
-        out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}-{cfg.preset}{engine}-s{a['seed']}")
+        student = "" if cfg.student == "ddpg" else f"-{cfg.student}"
+        out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}{student}-{cfg.preset}{engine}"
+                                               f"-s{a['seed']}")
         if os.path.exists(out) and not os.path.isdir(out):
             raise ValueError(f"--out {out} is a file, not a folder")
         if os.path.exists(out) and os.listdir(out) and not args.overwrite:

@@ -32,6 +32,7 @@ from typing import Any
 
 import envs
 
+STUDENTS = ("ddpg", "td3")
 METHODS = ("ddpg", "meta")  # the built-in explorers; metapg_jax.explorers.register adds more
 _REGISTERED_METHODS: set[str] = set()
 
@@ -52,7 +53,7 @@ TEACHERS = ("independent", "variance")
 STUDENT_FROM = ("pi", "lookahead")
 BASELINES = ("lookahead", "fresh")
 # Fields that make_config's own arguments set (with the task's protocol and budget): not overridable.
-IDENTITY_FIELDS = {"preset": "preset", "env.name": "task", "run.method": "method"}
+IDENTITY_FIELDS = {"preset": "preset", "env.name": "task", "run.method": "method", "student": "student"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -77,6 +78,16 @@ class DDPGConfig:
     gamma: float = 0.99
     normalize_obs: bool = True          # running mean/std of observations
     obs_clip: float = 5.0               # normalised observations clipped to +-obs_clip
+
+
+@dataclasses.dataclass(frozen=True)
+class TD3Config:
+    """TD3's own settings (Fujimoto et al., 2018; in normalised action units); the networks, optimisers,
+    batch, tau and gamma are the ``ddpg`` group's."""
+
+    policy_noise: float = 0.2      # target-policy smoothing noise stddev
+    noise_clip: float = 0.5        # ... clipped to +-noise_clip
+    policy_delay: int = 2          # actor and target updates every policy_delay critic updates
 
 
 @dataclasses.dataclass(frozen=True)
@@ -137,7 +148,9 @@ class Config:
     ddpg: DDPGConfig = DDPGConfig()
     noise: NoiseConfig = NoiseConfig()
     meta: MetaConfig = MetaConfig()
+    td3: TD3Config = TD3Config()
     preset: str = "paper"
+    student: str = "ddpg"           # the learner: 'ddpg' or 'td3'
 
     # Derived values, computed once.
     @property
@@ -168,12 +181,14 @@ class Config:
 def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "paper",
                 noise: str | None = None, steps: int | None = None, source: str = "gymnasium",
                 teacher: str | None = None, overrides: dict[str, Any] | None = None,
-                physics: str = "mjx") -> Config:
+                physics: str = "mjx", student: str = "ddpg") -> Config:
     """A full config from a task, a method and a preset (see the module docstring)."""
     spec = envs.get_spec(env)
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; valid presets: {', '.join(PRESETS)}")
     _check_method(method)
+    if student not in STUDENTS:
+        raise ValueError(f"unknown student {student!r}; valid students: {', '.join(STUDENTS)}")
     meta = MetaConfig(explore_steps=spec.explore_steps, eval_steps=spec.eval_steps,
                       teacher_steps=spec.teacher_steps)
     if teacher is not None:
@@ -196,6 +211,10 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
             run = dataclasses.replace(run, warmup_steps=0)
         cfg = Config(env=EnvConfig(env, source, physics=physics), run=run, ddpg=ddpg,
                      noise=NoiseConfig(kind="normal", stddev=0.1), meta=meta, preset=preset)
+    if student == "td3" and preset == "modern" and method != "meta":
+        # The TD3 authors' 25k uniformly random steps before the first update (their start_timesteps).
+        cfg = dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, warmup_steps=25_000))
+    cfg = dataclasses.replace(cfg, student=student)
     if noise is not None:
         cfg = dataclasses.replace(cfg, noise=dataclasses.replace(cfg.noise, kind=noise))
     overrides = overrides or {}
@@ -303,6 +322,10 @@ def validate(cfg: Config) -> Config:
         raise ValueError(f"unknown source {cfg.env.source!r}; valid sources: {', '.join(envs.SOURCES)}")
     envs.check_physics(cfg.env.name, cfg.env.source, cfg.env.physics)
     _check_method(cfg.run.method)
+    if cfg.student not in STUDENTS:
+        raise ValueError(f"unknown student {cfg.student!r}; valid students: {', '.join(STUDENTS)}")
+    if cfg.td3.policy_noise < 0 or cfg.td3.noise_clip < 0 or cfg.td3.policy_delay <= 0:
+        raise ValueError("td3.policy_noise and td3.noise_clip must be >= 0 and td3.policy_delay positive")
     if cfg.preset not in PRESETS:
         raise ValueError(f"unknown preset {cfg.preset!r}; valid presets: {', '.join(PRESETS)}")
     if cfg.noise.kind not in NOISES:

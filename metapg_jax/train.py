@@ -1,6 +1,6 @@
 """``make_train(config, env)``: the whole training run as pure, jittable functions.
 
-Builds the student (``metapg_jax.ddpg.DDPG``) and the explorer of ``config.run.method``
+Builds the student (``config.student``: ``metapg_jax.ddpg.DDPG`` or ``metapg_jax.td3.TD3``) and the explorer of ``config.run.method``
 (``metapg_jax.explorers``) and returns a ``metapg_jax.loop.Trainer``: ``init(key)``, ``train_chunk(state)``
 (one evaluation interval) and ``train(key)`` (the whole run as one program). Seeds are a vmap over keys
 (``seed_keys``; ``vmap_seeds`` names the seed axis):
@@ -17,6 +17,7 @@ from metapg_jax import explorers
 from metapg_jax.config import Config, validate
 from metapg_jax.ddpg import DDPG
 from metapg_jax.loop import Trainer, seed_keys, vmap_seeds
+from metapg_jax.td3 import TD3
 
 __all__ = ["make_train", "seed_keys", "vmap_seeds"]
 
@@ -29,5 +30,9 @@ def make_train(config: Config, env: Env | None = None) -> Trainer:
     if env is None:
         env = envs.make(config.env.name, source=config.env.source, episode_length=config.episode_length,
                         physics=config.env.physics)
-    student = DDPG(config.ddpg, int(env.observation_size), int(env.action_size))
+    obs_size, action_size = int(env.observation_size), int(env.action_size)
+    if config.student == "td3":
+        student = TD3(config.ddpg, config.td3, obs_size, action_size)
+    else:
+        student = DDPG(config.ddpg, obs_size, action_size)
     return Trainer(config, env, student, explorers.make(config))

@@ -10,6 +10,7 @@ file only for a change that is meant to change the numbers, and say so in the co
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -25,7 +26,7 @@ from tests.helpers import tiny_config
 
 PATH = os.path.join(os.path.dirname(os.path.abspath(__file__)), "golden_numbers.json")
 
-# name -> (env, method, preset, noise, teacher, physics)
+# name -> (env, method, preset, noise, teacher, physics[, student])
 CASES = {
     "pendulum-ddpg-adaptive-param": ("pendulum", "ddpg", "paper", "adaptive-param", None, "mjx"),
     "pendulum-ddpg-normal": ("pendulum", "ddpg", "paper", "normal", None, "mjx"),
@@ -37,16 +38,19 @@ CASES = {
     "pendulum-meta-modern": ("pendulum", "meta", "modern", None, None, "mjx"),
     "idp-ddpg-adaptive-param-mujoco": ("inverted_double_pendulum", "ddpg", "paper", "adaptive-param", None, "mujoco"),
     "idp-meta-independent-mujoco": ("inverted_double_pendulum", "meta", "paper", None, "independent", "mujoco"),
+    "pendulum-ddpg-normal-td3": ("pendulum", "ddpg", "paper", "normal", None, "mjx", "td3"),
+    "pendulum-meta-independent-td3": ("pendulum", "meta", "paper", None, "independent", "mjx", "td3"),
 }
 
 
 def case_config(name: str):
-    env, method, preset, noise, teacher, physics = CASES[name]
+    env, method, preset, noise, teacher, physics, *student = CASES[name]
     if preset == "paper":
         overrides = {"noise.kind": noise} if noise else {}
         if teacher:
             overrides["meta.teacher"] = teacher
-        return tiny_config(method, env=env, physics=physics, **overrides)
+        cfg = tiny_config(method, env=env, physics=physics, **overrides)
+        return dataclasses.replace(cfg, student=student[0]) if student else cfg
     return make_config(env, method, "modern", steps=600, physics=physics, overrides={
         "run.eval_every": 300, "run.eval_episodes": 2, "ddpg.hidden": "16,16", "meta.hidden": "16,16",
         "ddpg.batch_size": 16, "run.warmup_steps": 100, "meta.visit_samples": 64, "env.episode_length": 60,

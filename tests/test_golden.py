@@ -31,8 +31,9 @@ def test_short_runs_give_the_stored_numbers(name):
 def test_every_method_has_a_case():
     from metapg_jax.config import NOISES, TEACHERS
 
-    kinds = {(env, method, noise or teacher) for env, method, _, noise, teacher, _ in golden.CASES.values()}
+    kinds = {(env, method, noise or teacher) for env, method, _, noise, teacher, *_ in golden.CASES.values()}
     for env in ("pendulum",):
         assert {(env, "ddpg", n) for n in NOISES} <= kinds
         assert {(env, "meta", t) for t in TEACHERS} <= kinds
+    assert {case[6] for case in golden.CASES.values() if len(case) > 6} == {"td3"}
     assert set(STORED["cases"]) == set(golden.CASES)

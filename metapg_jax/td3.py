@@ -1,0 +1,152 @@
+"""The TD3 student (Fujimoto, van Hoof and Meger, 2018), with the same interface as ``metapg_jax.ddpg.DDPG``.
+
+Per update, on a minibatch (s, a, r, s', terminated) with observations normalised by the running
+normaliser (actions are in [-1, 1], so the action bound is 1):
+
+    a'     = clip(mu'(s') + clip(N(0, policy_noise^2), -noise_clip, noise_clip), -1, 1)   (target smoothing)
+    y      = r + gamma * (1 - terminated) * min(Q1'(s', a'), Q2'(s', a'))               (no gradient)
+    L_Q    = mean (Q1(s, a) - y)^2 + mean (Q2(s, a) - y)^2 (+ critic_l2 on both critics' hidden kernels)
+    every ``policy_delay``-th update, after the critics' step:
+    L_mu   = -mean Q1(s, mu(s));   theta' <- tau * theta + (1 - tau) * theta'   (actor and both critics)
+
+as the authors' reference code does it (the actor's loss uses the critics just updated; the targets
+move only on actor updates). The networks, optimisers, batch size, tau and gamma are the ``ddpg``
+config group's (the actor-critic settings every student uses); ``td3`` holds ``policy_noise``,
+``noise_clip`` and ``policy_delay``. The state carries its own PRNG key (the smoothing noise) and
+update count, so ``update(state, normalizer, batch)`` has DDPG's signature, and the look-ahead copy of
+Algorithm 1 copies them with the rest.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import optax
+from flax import struct
+
+from metapg_jax import normalizer as norm_lib
+from metapg_jax.config import DDPGConfig, TD3Config
+from metapg_jax.loop import any_over_seeds
+from metapg_jax.networks import Actor, Critic, is_hidden_kernel_path
+from metapg_jax.types import Params, Transition
+
+
+@struct.dataclass
+class TD3State:
+    actor: Params
+    critic: Params          # {"q1": ..., "q2": ...}
+    target_actor: Params
+    target_critic: Params
+    actor_opt: optax.OptState
+    critic_opt: optax.OptState
+    key: jax.Array          # for the target-policy smoothing noise
+    step: jax.Array         # int32: critic updates so far (the actor moves when step % policy_delay == 0)
+    actor_loss: jax.Array   # the latest actor update's loss (reported at every update)
+
+
+@dataclasses.dataclass(frozen=True)
+class TD3:
+    """Static pieces of the student; all methods are pure and jittable."""
+
+    cfg: DDPGConfig
+    td3: TD3Config
+    obs_size: int
+    action_size: int
+
+    @property
+    def actor_net(self) -> Actor:
+        return Actor(self.action_size, tuple(self.cfg.hidden), self.cfg.layer_norm, self.cfg.final_init)
+
+    @property
+    def critic_net(self) -> Critic:
+        return Critic(tuple(self.cfg.hidden), self.cfg.layer_norm, self.cfg.critic_action_layer, self.cfg.final_init)
+
+    @property
+    def actor_opt(self) -> optax.GradientTransformation:
+        return optax.adam(self.cfg.actor_lr)
+
+    @property
+    def critic_opt(self) -> optax.GradientTransformation:
+        return optax.adam(self.cfg.critic_lr)
+
+    def init(self, key: jax.Array) -> TD3State:
+        k_actor, k_q1, k_q2, k_state = jax.random.split(key, 4)
+        obs = jnp.zeros((self.obs_size,), jnp.float32)
+        act = jnp.zeros((self.action_size,), jnp.float32)
+        actor = self.actor_net.init(k_actor, obs)
+        critic = {"q1": self.critic_net.init(k_q1, obs, act), "q2": self.critic_net.init(k_q2, obs, act)}
+        return TD3State(actor=actor, critic=critic, target_actor=actor, target_critic=critic,
+                        actor_opt=self.actor_opt.init(actor), critic_opt=self.critic_opt.init(critic),
+                        key=k_state, step=jnp.zeros((), jnp.int32), actor_loss=jnp.zeros((), jnp.float32))
+
+    # -- acting (the same as DDPG's) ----------------------------------------------------
+    def normalize(self, normalizer: norm_lib.NormalizerState, obs: jax.Array) -> jax.Array:
+        return norm_lib.normalize(normalizer if self.cfg.normalize_obs else None, obs, self.cfg.obs_clip)
+
+    def actor_apply(self, actor: Params, obs_normalized: jax.Array) -> jax.Array:
+        return self.actor_net.apply(actor, obs_normalized)
+
+    def deterministic_policy(self, actor: Params, normalizer) -> Callable[[jax.Array], jax.Array]:
+        """mu(s) on raw observations: what evaluation and the look-ahead rollout D1 use."""
+        return lambda obs: self.actor_apply(actor, self.normalize(normalizer, obs))
+
+    # -- learning --------------------------------------------------------------------
+    def smoothed_action(self, target_actor: Params, next_obs_normalized: jax.Array, key: jax.Array) -> jax.Array:
+        """a' = clip(mu'(s') + clip(N(0, policy_noise^2), -noise_clip, noise_clip), -1, 1)."""
+        mu = self.actor_apply(target_actor, next_obs_normalized)
+        noise = jnp.clip(self.td3.policy_noise * jax.random.normal(key, mu.shape), -self.td3.noise_clip,
+                         self.td3.noise_clip)
+        return jnp.clip(mu + noise, -1.0, 1.0)
+
+    def target(self, state: TD3State, normalizer, batch: Transition, key: jax.Array) -> jax.Array:
+        """The clipped double-Q target with target-policy smoothing (no gradient)."""
+        next_obs = self.normalize(normalizer, batch.next_obs)
+        next_action = self.smoothed_action(state.target_actor, next_obs, key)
+        q1 = self.critic_net.apply(state.target_critic["q1"], next_obs, next_action)
+        q2 = self.critic_net.apply(state.target_critic["q2"], next_obs, next_action)
+        return jax.lax.stop_gradient(batch.reward + self.cfg.gamma * (1.0 - batch.terminated) * jnp.minimum(q1, q2))
+
+    def critic_loss(self, critic: Params, normalizer, batch: Transition, target: jax.Array):
+        obs = self.normalize(normalizer, batch.obs)
+        q1 = self.critic_net.apply(critic["q1"], obs, batch.action)
+        q2 = self.critic_net.apply(critic["q2"], obs, batch.action)
+        td_loss = jnp.mean(jnp.square(q1 - target)) + jnp.mean(jnp.square(q2 - target))
+        l2 = sum(jnp.sum(jnp.square(w)) for path, w in jax.tree_util.tree_leaves_with_path(critic)
+                 if is_hidden_kernel_path(path))
+        return td_loss + 0.5 * self.cfg.critic_l2 * l2, {"q_mean": jnp.mean(q1), "td_loss": td_loss}
+
+    def actor_loss(self, actor: Params, critic: Params, normalizer, batch: Transition):
+        obs = self.normalize(normalizer, batch.obs)
+        return -jnp.mean(self.critic_net.apply(critic["q1"], obs, self.actor_apply(actor, obs)))
+
+    def update(self, state: TD3State, normalizer, batch: Transition) -> tuple[TD3State, dict]:
+        """One TD3 update: both critics; every ``policy_delay``-th time also the actor and the targets."""
+        key, k_noise = jax.random.split(state.key)
+        target = self.target(state, normalizer, batch, k_noise)
+        (c_loss, aux), c_grad = jax.value_and_grad(self.critic_loss, has_aux=True)(
+            state.critic, normalizer, batch, target)
+        c_upd, critic_opt = self.critic_opt.update(c_grad, state.critic_opt, state.critic)
+        critic = optax.apply_updates(state.critic, c_upd)
+        state = state.replace(critic=critic, critic_opt=critic_opt, key=key)
+
+        def delayed(s: TD3State) -> TD3State:
+            a_loss, a_grad = jax.value_and_grad(self.actor_loss)(s.actor, s.critic, normalizer, batch)
+            a_upd, actor_opt = self.actor_opt.update(a_grad, s.actor_opt, s.actor)
+            actor = optax.apply_updates(s.actor, a_upd)
+            tau = self.cfg.tau
+            soft = lambda t, o: (1.0 - tau) * t + tau * o
+            return s.replace(actor=actor, actor_opt=actor_opt, actor_loss=a_loss,
+                             target_actor=jax.tree.map(soft, s.target_actor, actor),
+                             target_critic=jax.tree.map(soft, s.target_critic, s.critic))
+
+        # Every seed is at the same update count, so this is one real conditional for the seed batch
+        # (any_over_seeds), not a select that computes the actor's update at every step.
+        due = state.step % self.td3.policy_delay == 0
+        state = jax.lax.cond(any_over_seeds(due),
+                             lambda s: jax.tree.map(lambda new, old: jnp.where(due, new, old), delayed(s), s),
+                             lambda s: s, state)
+        state = state.replace(step=state.step + 1)
+        return state, {"critic_loss": c_loss, "actor_loss": state.actor_loss, **aux}
