@@ -59,8 +59,13 @@ def flat(d: dict, prefix: str = "") -> dict:
 
 
 def config_diff(config: dict, control: dict, ignore: Sequence[str] = ("run.total_steps",)) -> dict:
-    """{'group.field': (value, control value)} where the two configs differ."""
-    a, b = flat(config), flat(control)
+    """{'group.field': (value, control value)} where the two configs differ. Both go through
+    ``from_dict``/``to_dict`` first, so a field added to the config after a run was stored counts at its
+    default (what the stored run ran with), not as a difference."""
+    from metapg_jax import config as config_lib
+
+    normal = lambda d: config_lib.to_dict(config_lib.from_dict(d))
+    a, b = flat(normal(config)), flat(normal(control))
     return {k: (a.get(k), b.get(k)) for k in sorted(set(a) | set(b))
             if k not in ignore and a.get(k) != b.get(k)}
 

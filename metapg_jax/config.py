@@ -18,6 +18,9 @@ Presets:
   256-256 teacher without LayerNorm, one student update per stored step and
   one look-ahead update per D0 step, no warm-up.
 
+``student='td3'`` (``--student=td3``) trains TD3 instead of DDPG with the preset's networks and
+optimisers; under ``modern`` its baselines keep the TD3 authors' 25k random warm-up steps.
+
 Deviations from the paper that live here (docs/algorithm.md, "Deviations from the paper"):
 DDPG's 100 rollout steps per cycle (the paper's Table 1: 200), the variance
 teacher's state-dependent log-std by default, the look-ahead's update count.
@@ -34,7 +37,14 @@ import envs
 
 STUDENTS = ("ddpg", "td3")
 METHODS = ("ddpg", "meta")  # the built-in explorers; metapg_jax.explorers.register adds more
-_REGISTERED_METHODS: set[str] = set()
+PRESETS = ("paper", "modern")
+NOISES = ("normal", "ou", "adaptive-param", "none")
+TEACHERS = ("independent", "variance")
+STUDENT_FROM = ("pi", "lookahead")
+BASELINES = ("lookahead", "fresh")
+# Fields that make_config's own arguments set (with the task's protocol and budget): not overridable.
+IDENTITY_FIELDS = {"preset": "preset", "env.name": "task", "run.method": "method", "student": "student"}
+_REGISTERED_METHODS: set[str] = set()  # names given to metapg_jax.explorers.register
 
 
 def register_method(name: str) -> None:
@@ -47,13 +57,6 @@ def _check_method(method: str) -> None:
     if method not in METHODS and method not in _REGISTERED_METHODS:
         valid = ", ".join([*METHODS, *sorted(_REGISTERED_METHODS - set(METHODS))])
         raise ValueError(f"unknown method {method!r}; valid methods: {valid}")
-PRESETS = ("paper", "modern")
-NOISES = ("normal", "ou", "adaptive-param", "none")
-TEACHERS = ("independent", "variance")
-STUDENT_FROM = ("pi", "lookahead")
-BASELINES = ("lookahead", "fresh")
-# Fields that make_config's own arguments set (with the task's protocol and budget): not overridable.
-IDENTITY_FIELDS = {"preset": "preset", "env.name": "task", "run.method": "method", "student": "student"}
 
 
 @dataclasses.dataclass(frozen=True)

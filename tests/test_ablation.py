@@ -126,3 +126,16 @@ def test_run_specs_and_seed_mismatch(runs, capsys):
     assert ablation.main(["--out", str(root / "r"), "--upto", "12000", "--run", f"a={root / 'control'}",
                           "--run", f"b={root / 'two_seeds'}"]) == 2
     assert "seeds (2, base 0) differ" in capsys.readouterr().err
+
+
+def test_config_diff_counts_fields_added_later_at_their_defaults():
+    """A control stored before env.physics, td3.* and student existed differs from a new run only in
+    what was really changed."""
+    from metapg_jax import config as config_lib
+
+    new = config_lib.to_dict(config_lib.make_config("halfcheetah", "meta", overrides={"meta.teacher_steps": 1}))
+    old = config_lib.to_dict(config_lib.make_config("halfcheetah", "meta"))
+    for key in ("td3", "student"):
+        del old[key]
+    del old["env"]["physics"]
+    assert ablation.config_diff(new, old) == {"meta.teacher_steps": (1, 100)}
