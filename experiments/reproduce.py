@@ -288,9 +288,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.tensorboard and not args.artefacts_only:
             from metapg_jax import reporting
 
-            if not reporting.tensorboard_available():
-                raise ValueError('--tensorboard needs tensorboardX: pip install -e ".[tensorboard]" '
-                                 '(or pip install tensorboardX)')
+            reporting.require_tensorboard()
         if not args.artefacts_only:
             # Every cell's config before the first one trains: a budget that one method's cycle does not
             # divide, or a bad --set, stops the grid here rather than after the cells before it have run.

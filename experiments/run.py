@@ -187,9 +187,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
     if args.tensorboard:
         from metapg_jax import reporting
 
-        if not reporting.tensorboard_available():
-            raise ValueError('--tensorboard needs tensorboardX: pip install -e ".[tensorboard]" '
-                             '(or pip install tensorboardX)')
+        reporting.require_tensorboard()
     if args.resume:
         out = args.resume
         path = os.path.join(out, "config.json")

@@ -163,13 +163,14 @@ def cycle_rows(metrics: dict, names: Iterable[str], first_cycle: int) -> list[di
     ]
 
 
-def tensorboard_available() -> bool:
-    """Whether tensorboardX (the ``tensorboard`` extra) can be imported, for :class:`TensorBoardWriter`."""
+def require_tensorboard() -> None:
+    """Raises a one-line ``ValueError`` naming the extra if tensorboardX (the ``tensorboard`` extra, which
+    :class:`TensorBoardWriter` needs) cannot be imported: the ``--tensorboard`` check of the CLIs."""
     try:
         import tensorboardX  # noqa: F401
     except ImportError:
-        return False
-    return True
+        raise ValueError('--tensorboard needs tensorboardX: pip install -e ".[tensorboard]" '
+                         '(or pip install tensorboardX)') from None
 
 
 class TensorBoardWriter:
