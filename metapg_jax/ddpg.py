@@ -40,8 +40,9 @@ class StudentState:
 
 
 @dataclasses.dataclass(frozen=True)
-class DDPG:
-    """Static pieces of the student; all methods are pure and jittable."""
+class ActorCritic:
+    """What every student here shares (DDPG, ``metapg_jax.td3.TD3``): the actor and critic networks and
+    optimisers of the ``ddpg`` config group, observation normalisation and acting. Pure and jittable."""
 
     cfg: DDPGConfig
     obs_size: int
@@ -63,15 +64,6 @@ class DDPG:
     def critic_opt(self) -> optax.GradientTransformation:
         return optax.adam(self.cfg.critic_lr)
 
-    def init(self, key: jax.Array) -> StudentState:
-        k_actor, k_critic = jax.random.split(key)
-        obs = jnp.zeros((self.obs_size,), jnp.float32)
-        act = jnp.zeros((self.action_size,), jnp.float32)
-        actor = self.actor_net.init(k_actor, obs)
-        critic = self.critic_net.init(k_critic, obs, act)
-        return StudentState(actor=actor, critic=critic, target_actor=actor, target_critic=critic,
-                            actor_opt=self.actor_opt.init(actor), critic_opt=self.critic_opt.init(critic))
-
     # -- acting ---------------------------------------------------------------
     def normalize(self, normalizer: norm_lib.NormalizerState, obs: jax.Array) -> jax.Array:
         return norm_lib.normalize(normalizer if self.cfg.normalize_obs else None, obs, self.cfg.obs_clip)
@@ -82,6 +74,20 @@ class DDPG:
     def deterministic_policy(self, actor: Params, normalizer) -> Callable[[jax.Array], jax.Array]:
         """mu(s) on raw observations: what evaluation and the look-ahead rollout D1 use."""
         return lambda obs: self.actor_apply(actor, self.normalize(normalizer, obs))
+
+
+@dataclasses.dataclass(frozen=True)
+class DDPG(ActorCritic):
+    """The DDPG student (module docstring); all methods are pure and jittable."""
+
+    def init(self, key: jax.Array) -> StudentState:
+        k_actor, k_critic = jax.random.split(key)
+        obs = jnp.zeros((self.obs_size,), jnp.float32)
+        act = jnp.zeros((self.action_size,), jnp.float32)
+        actor = self.actor_net.init(k_actor, obs)
+        critic = self.critic_net.init(k_critic, obs, act)
+        return StudentState(actor=actor, critic=critic, target_actor=actor, target_critic=critic,
+                            actor_opt=self.actor_opt.init(actor), critic_opt=self.critic_opt.init(critic))
 
     # -- learning ---------------------------------------------------------------
     def critic_loss(self, critic: Params, student: StudentState, normalizer, batch: Transition):

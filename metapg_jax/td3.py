@@ -20,17 +20,16 @@ Algorithm 1 copies them with the rest.
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
 import optax
 from flax import struct
 
-from metapg_jax import normalizer as norm_lib
-from metapg_jax.config import DDPGConfig, TD3Config
+from metapg_jax.config import TD3Config
+from metapg_jax.ddpg import ActorCritic
 from metapg_jax.loop import any_over_seeds
-from metapg_jax.networks import Actor, Critic, is_hidden_kernel_path
+from metapg_jax.networks import is_hidden_kernel_path
 from metapg_jax.types import Params, Transition
 
 
@@ -48,29 +47,11 @@ class TD3State:
 
 
 @dataclasses.dataclass(frozen=True)
-class TD3:
-    """Static pieces of the student; all methods are pure and jittable."""
+class TD3(ActorCritic):
+    """The TD3 student (module docstring): DDPG's networks, optimisers and acting
+    (``metapg_jax.ddpg.ActorCritic``), its own state and update. Pure and jittable."""
 
-    cfg: DDPGConfig
-    td3: TD3Config
-    obs_size: int
-    action_size: int
-
-    @property
-    def actor_net(self) -> Actor:
-        return Actor(self.action_size, tuple(self.cfg.hidden), self.cfg.layer_norm, self.cfg.final_init)
-
-    @property
-    def critic_net(self) -> Critic:
-        return Critic(tuple(self.cfg.hidden), self.cfg.layer_norm, self.cfg.critic_action_layer, self.cfg.final_init)
-
-    @property
-    def actor_opt(self) -> optax.GradientTransformation:
-        return optax.adam(self.cfg.actor_lr)
-
-    @property
-    def critic_opt(self) -> optax.GradientTransformation:
-        return optax.adam(self.cfg.critic_lr)
+    td3: TD3Config = TD3Config()
 
     def init(self, key: jax.Array) -> TD3State:
         k_actor, k_q1, k_q2, k_state = jax.random.split(key, 4)
@@ -81,17 +62,6 @@ class TD3:
         return TD3State(actor=actor, critic=critic, target_actor=actor, target_critic=critic,
                         actor_opt=self.actor_opt.init(actor), critic_opt=self.critic_opt.init(critic),
                         key=k_state, step=jnp.zeros((), jnp.int32), actor_loss=jnp.zeros((), jnp.float32))
-
-    # -- acting (the same as DDPG's) ----------------------------------------------------
-    def normalize(self, normalizer: norm_lib.NormalizerState, obs: jax.Array) -> jax.Array:
-        return norm_lib.normalize(normalizer if self.cfg.normalize_obs else None, obs, self.cfg.obs_clip)
-
-    def actor_apply(self, actor: Params, obs_normalized: jax.Array) -> jax.Array:
-        return self.actor_net.apply(actor, obs_normalized)
-
-    def deterministic_policy(self, actor: Params, normalizer) -> Callable[[jax.Array], jax.Array]:
-        """mu(s) on raw observations: what evaluation and the look-ahead rollout D1 use."""
-        return lambda obs: self.actor_apply(actor, self.normalize(normalizer, obs))
 
     # -- learning --------------------------------------------------------------------
     def smoothed_action(self, target_actor: Params, next_obs_normalized: jax.Array, key: jax.Array) -> jax.Array:

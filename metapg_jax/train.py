@@ -32,7 +32,7 @@ def make_train(config: Config, env: Env | None = None) -> Trainer:
                         physics=config.env.physics)
     obs_size, action_size = int(env.observation_size), int(env.action_size)
     if config.student == "td3":
-        student = TD3(config.ddpg, config.td3, obs_size, action_size)
+        student = TD3(config.ddpg, obs_size, action_size, td3=config.td3)
     else:
         student = DDPG(config.ddpg, obs_size, action_size)
     return Trainer(config, env, student, explorers.make(config))

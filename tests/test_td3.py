@@ -19,7 +19,7 @@ from tests.helpers import tiny_config
 
 def _student(**td3):
     return TD3(DDPGConfig(hidden=(8, 8), layer_norm=False, critic_action_layer=0, critic_l2=0.0,
-                          normalize_obs=False), TD3Config(**td3), obs_size=3, action_size=2)
+                          normalize_obs=False), obs_size=3, action_size=2, td3=TD3Config(**td3))
 
 
 def _batch(n=5, seed=0):
