@@ -53,20 +53,22 @@ import sys
 from typing import Sequence
 
 from experiments import cells, figures, tables
-from experiments.grid import METHODS, TASKS, baseline_for
+from experiments.grid import GRIDS, TASKS, baseline_for, methods_for
 
 
 def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Sequence[str] = TASKS,
-              methods: Sequence[str] = tuple(METHODS), embedding: str = "tsne", visitation_tasks: Sequence[str] | None = None,
-              points_per_panel: int = 500, extra_provenance: dict | None = None) -> dict:
+              methods: Sequence[str] | None = None, embedding: str = "tsne", visitation_tasks: Sequence[str] | None = None,
+              points_per_panel: int = 500, extra_provenance: dict | None = None, student: str = "ddpg") -> dict:
     """Rebuilds every artefact from ``<runs_dir>/<preset>/<task>/<method>``; returns the manifest.
 
-    Finished run folders are first copied into the committed archive ``<results>/cells/<task>/<method>``
-    (``cells.archive_cell``); cells without a finished run folder are read from there."""
+    ``methods`` defaults to ``student``'s grid (``experiments.grid.methods_for``). Finished run folders are
+    first copied into the committed archive ``<results>/cells/<task>/<method>`` (``cells.archive_cell``);
+    cells without a finished run folder are read from there."""
+    methods = methods_for(student) if methods is None else tuple(methods)
     out_dir = cells.results_dir_for(results_dir, preset)
     os.makedirs(out_dir, exist_ok=True)
     archive = cells.archive_dir_for(results_dir, preset)
-    baseline = baseline_for(preset)
+    baseline = baseline_for(preset, student)
     for task in tasks:  # every finished run folder is (re)archived before anything is read
         for method in methods:
             cells.archive_cell(os.path.join(runs_dir, preset, task, method), os.path.join(archive, task, method),
@@ -74,18 +76,20 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
     results = cells.collect(os.path.join(runs_dir, preset), tasks, methods, archive_dir=archive)
     build = cells.build_info(runs_dir)
     build["preset"] = preset
+    if student != "ddpg":
+        build["student"] = student
     if extra_provenance:
         build.update(extra_provenance)
     footer = cells.provenance_footer(build, results.values())
     rows = tables.table2_rows(results, tasks, methods, baseline)
     files = tables.write_table2(rows, methods, out_dir, footer, preset, build["commit"],
-                                tables.engines_text(results.values()))
-    files += figures.write_curves(results, tasks, methods, out_dir, build, preset)
+                                tables.engines_text(results.values()), student=student)
+    files += figures.write_curves(results, tasks, methods, out_dir, build, preset, student=student)
     files += tables.write_steps_to_threshold(tables.steps_to_threshold_rows(results, tasks, methods, baseline),
-                                             out_dir, footer, preset, build["commit"])
+                                             out_dir, footer, preset, build["commit"], student=student)
     files += tables.write_comparisons(tables.comparison_rows(results, tasks, methods), out_dir, footer, preset,
-                                      build["commit"])
-    files += figures.write_teacher_designs(results, out_dir, build, preset)
+                                      build["commit"], student=student)
+    files += figures.write_teacher_designs(results, out_dir, build, preset, student=student)
     for stale in glob.glob(os.path.join(out_dir, "visitation_*.png")):  # only what this build draws stays
         os.remove(stale)
     files += figures.write_visitation(results, out_dir, build,
@@ -115,6 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--runs-dir", default="runs/reproduce", help="grid root: <runs-dir>/<preset>/<task>/<method>")
     p.add_argument("--results-dir", default="results", help="output folder (a non-paper preset goes to <dir>/<preset>)")
     p.add_argument("--preset", default="paper", choices=("paper", "modern"))
+    p.add_argument("--student", default="ddpg", choices=tuple(GRIDS),
+                   help="whose grid the run folders hold: ddpg (default) or td3 (methods: experiments.grid.GRIDS)")
     add_figure_options(p)
     return p
 
@@ -122,7 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     manifest = build_all(args.runs_dir, args.results_dir, args.preset, embedding=args.embedding,
-                         visitation_tasks=args.visitation_task)
+                         visitation_tasks=args.visitation_task, student=args.student)
     out = cells.results_dir_for(args.results_dir, args.preset)
     print(f"wrote {len(manifest['files'])} artefacts to {out} from {len(manifest['cells'])} stored cells")
     return 0

@@ -11,7 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
-from experiments.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, TASKS, baseline_for
+from experiments.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, TASKS, baseline_for, grid_label
 
 # Line colour of each grid method in every figure.
 METHOD_COLORS = {"meta-independent": "tab:red", "meta-variance": "tab:orange",
@@ -59,7 +59,7 @@ def _plot_methods(ax, results: dict, task: str, methods: Sequence[str]) -> int:
 
 
 def write_curves(results: dict, tasks: Sequence[str], methods: Sequence[str], out_dir: str, build: dict,
-                 preset: str) -> list[str]:
+                 preset: str, student: str = "ddpg") -> list[str]:
     """``curves_<task>.png`` per task with stored runs: mean ± std band over seeds per method (Figure 3)."""
     plt = pyplot()
     paths = []
@@ -68,7 +68,7 @@ def write_curves(results: dict, tasks: Sequence[str], methods: Sequence[str], ou
             continue
         fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=120)
         _plot_methods(ax, results, task, methods)
-        ax.set_title(f"{TASK_NAMES.get(task, task)} ({preset} preset): mean ± std over seeds", fontsize=10)
+        ax.set_title(f"{TASK_NAMES.get(task, task)} ({grid_label(preset, student)}): mean ± std over seeds", fontsize=10)
         fig.tight_layout()
         path = os.path.join(out_dir, f"curves_{task}.png")
         save_figure(fig, path, build)
@@ -78,15 +78,15 @@ def write_curves(results: dict, tasks: Sequence[str], methods: Sequence[str], ou
 
 
 def write_teacher_designs(results: dict, out_dir: str, build: dict, preset: str,
-                          task: str = "inverted_double_pendulum") -> list[str]:
-    """Independent vs variance teacher vs the preset's DDPG baseline, curves on one task (Figure 2)."""
-    methods = ("meta-independent", "meta-variance", baseline_for(preset))
+                          task: str = "inverted_double_pendulum", student: str = "ddpg") -> list[str]:
+    """Independent vs variance teacher vs the grid's baseline, curves on one task (Figure 2)."""
+    methods = ("meta-independent", "meta-variance", baseline_for(preset, student))
     if not any((task, m) in results for m in methods):
         return []
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=120)
     _plot_methods(ax, results, task, methods)
-    ax.set_title(f"Teacher designs on {TASK_NAMES.get(task, task)} ({preset} preset)", fontsize=10)
+    ax.set_title(f"Teacher designs on {TASK_NAMES.get(task, task)} ({grid_label(preset, student)})", fontsize=10)
     fig.tight_layout()
     short = "idp" if task == "inverted_double_pendulum" else task
     path = os.path.join(out_dir, f"teacher_designs_{short}.png")

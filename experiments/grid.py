@@ -18,17 +18,40 @@ METHODS = {
     "meta-variance": ["--method=meta", "--teacher=variance"],
     "ddpg-paramnoise": ["--method=ddpg", "--noise=adaptive-param"],
     "ddpg-normal": ["--method=ddpg", "--noise=normal"],
+    # TD3's own exploration: Gaussian action noise 0.1 (Fujimoto et al. 2018; the paper preset's normal noise is 0.2).
+    "td3-normal": ["--method=ddpg", "--noise=normal", "--set", "noise.stddev=0.1"],
 }
 METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta (variance)",
-                "ddpg-paramnoise": "DDPG (param noise)", "ddpg-normal": "DDPG (normal noise)"}
+                "ddpg-paramnoise": "DDPG (param noise)", "ddpg-normal": "DDPG (normal noise)",
+                "td3-normal": "TD3 (normal noise)"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
 # for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/config.py).
 BASELINES = {"paper": BASELINE, "modern": "ddpg-normal"}
+# Each student's grid: its methods (a method's options plus ``--student=<student>`` for a student other
+# than DDPG) and the baseline its Meta is compared against, whatever the preset: for TD3, TD3 with its
+# own Gaussian exploration noise.
+GRIDS = {"ddpg": ("meta-independent", "meta-variance", "ddpg-paramnoise", "ddpg-normal"),
+         "td3": ("meta-independent", "td3-normal")}
+STUDENT_BASELINES = {"td3": "td3-normal"}
+STUDENT_NAMES = {"ddpg": "DDPG", "td3": "TD3"}
 
 
-def baseline_for(preset: str) -> str:
-    """Grid method name of the DDPG baseline of ``preset``'s comparisons (Welch test, thresholds, figures)."""
+def methods_for(student: str = "ddpg") -> tuple[str, ...]:
+    """The grid methods of ``student`` (``experiments.reproduce --student``)."""
+    if student not in GRIDS:
+        raise ValueError(f"no grid for student {student!r}; students with a grid: {', '.join(GRIDS)}")
+    return GRIDS[student]
+
+
+def baseline_for(preset: str, student: str = "ddpg") -> str:
+    """Grid method name of the baseline of ``preset``'s comparisons (Welch test, thresholds, figures)."""
     if preset not in BASELINES:
         raise ValueError(f"unknown preset {preset!r}; valid presets: {', '.join(BASELINES)}")
-    return BASELINES[preset]
+    methods_for(student)
+    return STUDENT_BASELINES.get(student, BASELINES[preset])
+
+
+def grid_label(preset: str, student: str = "ddpg") -> str:
+    """How titles name a grid: 'paper preset', or 'paper preset, TD3 student' for a student other than DDPG."""
+    return f"{preset} preset" if student == "ddpg" else f"{preset} preset, {STUDENT_NAMES.get(student, student)} student"

@@ -44,10 +44,12 @@ import time
 
 from experiments.artefacts import add_figure_options, build_all
 from experiments.cells import archive_cell, archive_dir_for, read_json, results_dir_for
-from experiments.grid import METHODS, TASKS, baseline_for
+from experiments.grid import GRIDS, METHODS, TASKS, baseline_for, methods_for
 
 # Where --physics=mujoco keeps its grid by default, apart from the MJX grid's runs/reproduce and results.
 MUJOCO_RUNS, MUJOCO_RESULTS = "runs/reproduce-mujoco", "results/mujoco"
+# Where a student other than DDPG keeps its grid by default (whatever the physics): runs/reproduce-<student>
+# and results/<student>.
 RUN_ORDER = ("inverted_double_pendulum", "pendulum", "inverted_pendulum", "reacher", "hopper", "halfcheetah")
 DEFAULT_SEEDS = 8
 
@@ -59,8 +61,13 @@ def build_parser() -> argparse.ArgumentParser:
                     "Table 2 and the figures from the stored results.")
     p.add_argument("--tasks", default=",".join(RUN_ORDER),
                    help=f"comma-separated tasks, run in this order (default: {','.join(RUN_ORDER)})")
-    p.add_argument("--methods", default=",".join(METHODS),
-                   help=f"comma-separated methods: {', '.join(METHODS)} (default: all)")
+    p.add_argument("--methods", default=None,
+                   help="comma-separated methods of the student's grid (default: all of them): "
+                        + "; ".join(f"{s}: {', '.join(m)}" for s, m in GRIDS.items()))
+    p.add_argument("--student", default="ddpg", choices=tuple(GRIDS),
+                   help="the learner of every cell: ddpg (default) or td3 (its grid: TD3 with Gaussian noise 0.1 vs "
+                        "Meta on TD3; cells go to runs/reproduce-td3 and results/td3 unless --runs-dir/--results-dir "
+                        "are given)")
     p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, help=f"seeds per cell (default {DEFAULT_SEEDS})")
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed of every cell (default 0)")
     p.add_argument("--steps", type=int, default=None,
@@ -140,6 +147,8 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
             f"--seed={args.seed}", f"--source={args.source}"]
     if args.physics != "mjx" and task != "pendulum":
         argv.append(f"--physics={args.physics}")
+    if args.student != "ddpg":
+        argv.append(f"--student={args.student}")
     if args.steps is not None or state == "extend":
         argv.append(f"--steps={wanted_budget(args, task)}")
     for item in args.overrides:
@@ -250,7 +259,7 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
             code = 130
         if os.path.isdir(out):
             _write_cell_record(out, argv, code, time.perf_counter() - t0, started)
-            if archive_cell(out, archived, method, baseline_for(args.preset)):
+            if archive_cell(out, archived, method, baseline_for(args.preset, args.student)):
                 print(f"{tag}: finished; results archived in {archived}", flush=True)
         report[(task, method)] = {0: {"resume": "resumed", "extend": "extended"}.get(state, "ran")}.get(
             code, f"exit {code}")
@@ -269,15 +278,17 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     mujoco = args.physics == "mujoco"
+    other = args.student != "ddpg"
     if args.runs_dir is None:
-        args.runs_dir = MUJOCO_RUNS if mujoco else "runs/reproduce"
+        args.runs_dir = f"runs/reproduce-{args.student}" if other else MUJOCO_RUNS if mujoco else "runs/reproduce"
     if args.results_dir is None:
-        args.results_dir = MUJOCO_RESULTS if mujoco else "results"
+        args.results_dir = f"results/{args.student}" if other else MUJOCO_RESULTS if mujoco else "results"
     try:
         tasks = parse_list(args.tasks, TASKS, "task")
         if mujoco and args.source != "gymnasium":
             raise ValueError(f"--physics=mujoco steps gymnasium's models; source {args.source!r} has only MJX")
-        methods = parse_list(args.methods, tuple(METHODS), "method")
+        grid_methods = methods_for(args.student)
+        methods = parse_list(args.methods or ",".join(grid_methods), grid_methods, "method")
         if args.seeds <= 0:
             raise ValueError(f"--seeds must be positive, got {args.seeds}")
         if args.steps is not None and args.steps <= 0:
@@ -315,7 +326,7 @@ def main(argv: list[str] | None = None) -> int:
         return status
     manifest = build_all(
         args.runs_dir, args.results_dir, args.preset, embedding=args.embedding,
-        visitation_tasks=args.visitation_task,
+        visitation_tasks=args.visitation_task, student=args.student,
         extra_provenance={"reproduce_argv": sys.argv[1:] if argv is None else list(argv),
                           "requested": {"tasks": tasks, "methods": methods, "seeds": args.seeds, "seed": args.seed,
                                         "steps": args.steps, "overrides": args.overrides},

@@ -15,7 +15,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from experiments.cells import RunResult, cell_provenance
-from experiments.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for
+from experiments.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for, grid_label, STUDENT_NAMES
 from experiments.stats import (FINAL_DEFINITION, first_step_reaching, fmt, fmt_p, mean_std, num_final_evaluations,
                                stats_definition, t_interval, welch_test)
 
@@ -117,15 +117,15 @@ def engines_text(results: Iterable[RunResult]) -> str:
 
 
 def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str,
-                 build_commit: str | None = None, engines: str = "MJX") -> list[str]:
+                 build_commit: str | None = None, engines: str = "MJX", student: str = "ddpg") -> list[str]:
     """table2.md, table2.json and table2_per_seed.csv from ``table2_rows``; returns the paths."""
     os.makedirs(out_dir, exist_ok=True)
     names = [METHOD_NAMES.get(m, m) for m in methods]
-    baseline = baseline_for(preset)
-    protocol = ("" if preset == "paper" else
-                f" The paper's numbers are for its own protocol (the paper preset's networks, noise and budgets), "
-                f"not for the {preset} preset: they are there for scale only.")
-    md = [f"# Table 2: final evaluation return ({preset} preset)", "",
+    baseline = baseline_for(preset, student)
+    protocol = ("" if preset == "paper" and student == "ddpg" else
+                f" The paper's numbers are for its own protocol (DDPG with the paper preset's networks, noise and "
+                f"budgets), not for the {grid_label(preset, student)}: they are there for scale only.")
+    md = [f"# Table 2: final evaluation return ({grid_label(preset, student)})", "",
           f"Rows: tasks; columns: methods, mean ± std over the seeds run here, next to the paper's Table 2 "
           f"(Meta / DDPG; {PAPER_SEEDS} seeds, gym v1 tasks, so not directly comparable: our tasks are gymnasium "
           f"v5 models on {engines}). \"not run\": no finished run is stored for that cell (nothing is estimated); "
@@ -158,7 +158,8 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     with open(paths[0], "w") as f:
         f.write("\n".join(md))
     with open(paths[1], "w") as f:
-        json.dump({"preset": preset, "baseline": baseline, "final_definition": FINAL_DEFINITION,
+        json.dump({"preset": preset, **({} if student == "ddpg" else {"student": student}),
+                   "baseline": baseline, "final_definition": FINAL_DEFINITION,
                    "statistics": stats_definition(baseline),
                    "paper_seeds": PAPER_SEEDS, "rows": rows}, f, indent=2, default=json_default)
     with open(paths[2], "w", newline="") as f:
@@ -215,7 +216,7 @@ def steps_to_threshold_rows(results: dict, tasks: Sequence[str], methods: Sequen
 
 
 def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset: str,
-                             build_commit: str | None = None) -> list[str]:
+                             build_commit: str | None = None, student: str = "ddpg") -> list[str]:
     paths = [os.path.join(out_dir, "steps_to_threshold.csv"), os.path.join(out_dir, "steps_to_threshold.md")]
     keys = ["task", "method", "threshold", "baseline_step", "step", "ratio", "seeds", "env_steps_run", "complete",
             "baseline_complete"]
@@ -224,8 +225,8 @@ def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset
         w.writeheader()
         for row in rows:
             w.writerow({**{k: ("" if row[k] is None else row[k]) for k in keys}, "build_commit": build_commit or ""})
-    baseline = METHOD_NAMES.get(baseline_for(preset), baseline_for(preset))
-    md = [f"# Samples to reach the DDPG baseline's best ({preset} preset)", "",
+    baseline = METHOD_NAMES.get(baseline_for(preset, student), baseline_for(preset, student))
+    md = [f"# Samples to reach the {STUDENT_NAMES.get(student, student)} baseline's best ({grid_label(preset, student)})", "",
           f"Threshold: the best value over evaluations of the {baseline} seed-mean evaluation-return curve. "
           "`step`: the first evaluation's env step at which a method's seed-mean curve reaches it; "
           "`ratio` = step / DDPG's own step (the paper: Meta needs about 1/6 of DDPG's samples on "
@@ -286,11 +287,11 @@ def comparison_rows(results: dict, tasks: Sequence[str], methods: Sequence[str])
 
 
 def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
-                      build_commit: str | None = None) -> list[str]:
+                      build_commit: str | None = None, student: str = "ddpg") -> list[str]:
     """comparisons.md and comparisons.json from ``comparison_rows``; returns the paths."""
     paths = [os.path.join(out_dir, "comparisons.md"), os.path.join(out_dir, "comparisons.json")]
     name = lambda m: METHOD_NAMES.get(m, m)
-    md = [f"# Every method against every other ({preset} preset)", "",
+    md = [f"# Every method against every other ({grid_label(preset, student)})", "",
           "The numbers docs/results.md quotes beyond `table2.md`, all from the same stored cells (finished "
           "cells only; pairs only between cells of the same budget).", "",
           f"- {FINAL_DEFINITION}.",
@@ -320,7 +321,8 @@ def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
     with open(paths[0], "w") as f:
         f.write("\n".join(md))
     with open(paths[1], "w") as f:
-        json.dump({"preset": preset, "final_definition": FINAL_DEFINITION, "build_commit": build_commit,
+        json.dump({"preset": preset, **({} if student == "ddpg" else {"student": student}),
+                   "final_definition": FINAL_DEFINITION, "build_commit": build_commit,
                    **comparisons}, f, indent=2, default=json_default)
     return paths
 
@@ -329,12 +331,12 @@ def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
 
 def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequence[str], footer: str) -> str:
     """``README.md``: what each artefact is, which cells were run, and the headline numbers."""
-    preset = manifest["build"]["preset"]
-    baseline = METHOD_NAMES.get(baseline_for(preset), baseline_for(preset))
+    preset, student = manifest["build"]["preset"], manifest["build"].get("student", "ddpg")
+    baseline = METHOD_NAMES.get(baseline_for(preset, student), baseline_for(preset, student))
     cells = manifest["cells"]
     done = [c for c in cells if c["complete"]]
     have = set(manifest["files"])
-    lines = [f"# Results ({preset} preset)", "",
+    lines = [f"# Results ({grid_label(preset, student)})", "",
              f"Rebuilt by `python -m experiments.reproduce --artefacts-only` (or `python -m experiments.artefacts`) "
              f"from the run folders under `{manifest['build']['runs_dir']}/{preset}/<task>/<method>` (not committed) "
              f"and, for cells without a finished run folder, the committed copies of finished cells in "
