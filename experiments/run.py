@@ -1,7 +1,10 @@
-"""Train many seeds of DDPG or Meta (DDPG + learned exploration teacher) in one compiled program.
+"""Train many seeds of a student (DDPG, TD3) with an explorer (noise, or Meta: the learned exploration
+teacher) in one compiled program.
 
     python -m experiments.run --env=inverted_double_pendulum --seeds=8
     python -m experiments.run --env=pendulum --method=ddpg --noise=ou --steps=90000
+    python -m experiments.run --env=hopper --student=td3 --method=meta --seeds=8 --physics=mujoco
+    python -m experiments.run --env=pendulum --plugin my_explorer.py --method=uniform   # a registered explorer
     python -m experiments.run --env=hopper --preset=modern --set ddpg.actor_lr=1e-3
     python -m experiments.run --resume runs/hopper-meta-modern-s0
     python -m experiments.run --resume runs/hopper-meta-modern-s0 --steps=990000   # extend the budget
@@ -54,7 +57,7 @@ TEACHER_CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_
 # Arguments that define the run; stored in config.json so --resume can rebuild and compare it.
 RUN_ARGS = {"env": "pendulum", "method": "meta", "teacher": None, "preset": "paper", "noise": None,
             "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "mjx",
-            "student": "ddpg", "overrides": []}
+            "student": "ddpg", "overrides": [], "plugins": []}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -64,12 +67,19 @@ def build_parser() -> argparse.ArgumentParser:
     d = RUN_ARGS
     p.add_argument("--env", default=None, help=f"task: {', '.join(envs.TASKS)} (default {d['env']})")
     p.add_argument("--method", default=None,
-                   help="'meta' (the paper's learned teacher, default) or 'ddpg' (noise baseline)")
+                   help="'meta' (the paper's learned teacher, default), 'ddpg' (noise baseline) or an explorer "
+                        "a --plugin registers")
     p.add_argument("--teacher", default=None,
                    help="meta teacher design: 'independent' (the paper's best; default) or 'variance'")
     p.add_argument("--student", default=None,
-                   help="the off-policy learner: 'ddpg' (default) or 'td3' (Fujimoto et al., 2018; with "
-                        "--preset=modern the TD3 authors' settings, 25k random warm-up steps for the baselines)")
+                   help="the off-policy learner: 'ddpg' (default), 'td3' (Fujimoto et al., 2018; with "
+                        "--preset=modern the TD3 authors' settings, 25k random warm-up steps for the baselines) "
+                        "or one a --plugin registers")
+    p.add_argument("--plugin", dest="plugins", action="append", default=None, metavar="MODULE|FILE.py",
+                   help="import this module (dotted name) or Python file first: one that registers an explorer "
+                        "(metapg_jax.explorers.register) or a student (metapg_jax.students.register), whose name "
+                        "--method or --student then takes; repeatable; stored with the run, so --resume imports it "
+                        "again")
     p.add_argument("--preset", default=None,
                    help="'paper' (2018 baselines DDPG; default) or 'modern' (256-256, 1 update/step)")
     p.add_argument("--noise", default=None,
@@ -137,8 +147,37 @@ def run_args(args: argparse.Namespace, stored: dict | None = None) -> dict:
     return base
 
 
+def import_plugins(names: list[str]) -> None:
+    """Imports each ``--plugin`` (a dotted module name, or a path to a .py file) once per process."""
+    import importlib
+    import importlib.util
+
+    for name in names:
+        if name.endswith(".py"):
+            path = os.path.abspath(name)
+            module_name = "metapg_plugin_" + "".join(c if c.isalnum() else "_" for c in path)
+            if module_name in sys.modules:
+                continue
+            if not os.path.isfile(path):
+                raise ValueError(f"--plugin {name}: no such file")
+            spec = importlib.util.spec_from_file_location(module_name, path)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[module_name] = module
+            try:
+                spec.loader.exec_module(module)
+            except Exception as err:
+                del sys.modules[module_name]
+                raise ValueError(f"--plugin {name}: importing it failed: {type(err).__name__}: {err}") from None
+        else:
+            try:
+                importlib.import_module(name)
+            except ImportError as err:
+                raise ValueError(f"--plugin {name}: cannot import it: {err}") from None
+
+
 def config_from_run_args(a: dict) -> config_lib.Config:
     """Builds and validates the config; raises ValueError with one line on bad input."""
+    import_plugins(a.get("plugins") or [])
     if a["seeds"] <= 0:
         raise ValueError(f"--seeds must be positive, got {a['seeds']}")
     if a["steps"] is not None and a["steps"] <= 0:

@@ -35,7 +35,7 @@ from typing import Any
 
 import envs
 
-STUDENTS = ("ddpg", "td3")
+STUDENTS = ("ddpg", "td3")  # the built-in students; metapg_jax.students.register adds more
 METHODS = ("ddpg", "meta")  # the built-in explorers; metapg_jax.explorers.register adds more
 PRESETS = ("paper", "modern")
 NOISES = ("normal", "ou", "adaptive-param", "none")
@@ -45,12 +45,25 @@ BASELINES = ("lookahead", "fresh")
 # Fields that make_config's own arguments set (with the task's protocol and budget): not overridable.
 IDENTITY_FIELDS = {"preset": "preset", "env.name": "task", "run.method": "method", "student": "student"}
 _REGISTERED_METHODS: set[str] = set()  # names given to metapg_jax.explorers.register
+_REGISTERED_STUDENTS: set[str] = set()  # names given to metapg_jax.students.register
 
 
 def register_method(name: str) -> None:
     """Lets ``validate`` accept ``run.method == name`` (called by ``metapg_jax.explorers.register``).
     A registered method's cycle stores ``run.rollout_steps`` steps, like the DDPG baseline's."""
     _REGISTERED_METHODS.add(name)
+
+
+def register_student(name: str) -> None:
+    """Lets ``make_config`` and ``validate`` accept ``student == name`` (called by
+    ``metapg_jax.students.register``)."""
+    _REGISTERED_STUDENTS.add(name)
+
+
+def _check_student(student: str) -> None:
+    if student not in STUDENTS and student not in _REGISTERED_STUDENTS:
+        valid = ", ".join([*STUDENTS, *sorted(_REGISTERED_STUDENTS - set(STUDENTS))])
+        raise ValueError(f"unknown student {student!r}; valid students: {valid}")
 
 
 def _check_method(method: str) -> None:
@@ -190,8 +203,7 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; valid presets: {', '.join(PRESETS)}")
     _check_method(method)
-    if student not in STUDENTS:
-        raise ValueError(f"unknown student {student!r}; valid students: {', '.join(STUDENTS)}")
+    _check_student(student)
     meta = MetaConfig(explore_steps=spec.explore_steps, eval_steps=spec.eval_steps,
                       teacher_steps=spec.teacher_steps)
     if teacher is not None:
@@ -325,8 +337,7 @@ def validate(cfg: Config) -> Config:
         raise ValueError(f"unknown source {cfg.env.source!r}; valid sources: {', '.join(envs.SOURCES)}")
     envs.check_physics(cfg.env.name, cfg.env.source, cfg.env.physics)
     _check_method(cfg.run.method)
-    if cfg.student not in STUDENTS:
-        raise ValueError(f"unknown student {cfg.student!r}; valid students: {', '.join(STUDENTS)}")
+    _check_student(cfg.student)
     if cfg.td3.policy_noise < 0 or cfg.td3.noise_clip < 0 or cfg.td3.policy_delay <= 0:
         raise ValueError("td3.policy_noise and td3.noise_clip must be >= 0 and td3.policy_delay positive")
     if cfg.preset not in PRESETS:

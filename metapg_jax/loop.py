@@ -1,6 +1,6 @@
 """The training loop: the per-seed ``TrainState`` and the ``Trainer`` that advances it.
 
-A ``Trainer`` holds the config, the env, a *student* (the off-policy learner; ``metapg_jax.ddpg.DDPG``)
+A ``Trainer`` holds the config, the env, a *student* (the off-policy learner: ``metapg_jax.students``)
 and an *explorer* (who collects the student's data: ``metapg_jax.noise.NoiseExplorer`` for the DDPG
 baselines, ``metapg_jax.meta.TeacherExplorer`` for Algorithm 1; ``metapg_jax.explorers``). It gives
 
@@ -24,10 +24,8 @@ over keys of these functions; the host (``experiments.run``) jits the vmapped
 ``jax.vmap``, but rare per-env events (a new parameter-noise perturbation at an
 episode start) are then computed at every step (see ``any_over_seeds``).
 
-The student interface (what the loop and the explorers use of a learner): ``init(key)`` -> a state with
-``actor`` (and ``critic``) parameters; ``normalize(normalizer, obs)``; ``actor_apply(actor, obs_n)``
-(actions in [-1, 1]); ``deterministic_policy(actor, normalizer)`` (for D1, evaluation and export);
-``update(state, normalizer, batch) -> (state, metrics)``; ``obs_size``, ``action_size``.
+The student interface (what the loop and the explorers use of a learner) is documented in
+``metapg_jax.students``; this module imports no student either.
 """
 
 from __future__ import annotations
@@ -44,14 +42,13 @@ from metapg_jax import normalizer as norm_lib
 from metapg_jax import replay
 from metapg_jax import visits as visits_lib
 from metapg_jax.config import Config
-from metapg_jax.ddpg import StudentState
 from metapg_jax.evaluate import evaluate
 from metapg_jax.types import Transition
 
 
 @struct.dataclass
 class TrainState:
-    student: StudentState
+    student: Any                     # the student's state (metapg_jax.students: .actor, and .critic if it has one)
     normalizer: norm_lib.NormalizerState
     buffer: replay.ReplayState
     env_state: State                 # the exploring env (episodes continue across cycles)
@@ -69,7 +66,7 @@ def all_finite(state: TrainState) -> jax.Array:
     Returned per cycle in the metrics, so the host learns of a bad seed at the
     next chunk boundary without any host sync inside the chunk.
     """
-    trees = [state.student.actor, state.student.critic]
+    trees = [state.student.actor, getattr(state.student, "critic", ())]
     if hasattr(state.explorer, "params"):
         trees.append(state.explorer.params)
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(trees)]))
@@ -108,7 +105,7 @@ def flatten_time(tree):
     return jax.tree.map(lambda x: x.reshape((-1,) + x.shape[2:]), tree)
 
 
-def train_updates(learner, student: StudentState, normalizer, sample, key: jax.Array, num: int):
+def train_updates(learner, student: Any, normalizer, sample, key: jax.Array, num: int):
     """``num`` updates of ``learner`` (the student) with minibatches from ``sample(key)``; returns the mean metrics."""
 
     def step(st, k):
@@ -122,7 +119,7 @@ def train_updates(learner, student: StudentState, normalizer, sample, key: jax.A
 class Trainer:
     config: Config
     env: Env
-    student: Any    # the learner (module docstring: the student interface); metapg_jax.ddpg.DDPG
+    student: Any    # the learner: metapg_jax.students.Student (DDPG, TD3 or a registered one)
     explorer: Any   # metapg_jax.explorers.Explorer: init(trainer, key) and cycle(trainer, state)
 
     # ------------------------------------------------------------------ init
@@ -190,10 +187,9 @@ class Trainer:
             mean = jax.tree.map(lambda *xs: sum(w * x for w, x in zip(weights, xs)), *metrics)
             return student, explorer, state.updates + num, mean
 
-        def skip(_):
-            nan = jnp.full((), jnp.nan, jnp.float32)
-            return state.student, state.explorer, state.updates, {
-                "critic_loss": nan, "actor_loss": nan, "q_mean": nan, "td_loss": nan}
+        def skip(_):  # the student's metrics (whatever it reports) are NaN for a cycle without updates
+            nan = jax.tree.map(lambda m: jnp.full(m.shape, jnp.nan, m.dtype), jax.eval_shape(run, None)[3])
+            return state.student, state.explorer, state.updates, nan
 
         # A real conditional (any_over_seeds), not the per-seed select that vmap makes of a batched
         # predicate: the updates are skipped during warm-up, and the minibatch gathers stay inside the

@@ -102,13 +102,13 @@ def student_rollout(trainer: Trainer, actor, normalizer, key: jax.Array):
 
 def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     """One meta-iteration of Algorithm 1 (module docstring)."""
-    cfg, ddpg = trainer.config, trainer.student
+    cfg, learner = trainer.config, trainer.student
     m = cfg.meta
     teacher = make_teacher(trainer)
     tstate: TeacherState = state.explorer
     key, k_d0, k_look, k_d1, k_train, k_d2 = jax.random.split(state.key, 6)
     student, normalizer = state.student, state.normalizer
-    norm = lambda obs: ddpg.normalize(normalizer, obs)
+    norm = lambda obs: learner.normalize(normalizer, obs)
 
     # 1. D0 from the teacher (clipped action to the env; the unclipped sample kept for log pi_e).
     def teacher_policy(carry, obs, first, k):
@@ -123,7 +123,7 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
         idx = jax.random.randint(k, (cfg.ddpg.batch_size,), 0, m.explore_steps)
         return jax.tree.map(lambda x: x[idx], d0)
 
-    lookahead, look_metrics = train_updates(ddpg, student, normalizer, sample_d0, k_look,
+    lookahead, look_metrics = train_updates(learner, student, normalizer, sample_d0, k_look,
                                             m.lookahead_steps or cfg.run.train_steps)
 
     # 3. D1 from pi' and R_hat(pi').
@@ -167,7 +167,7 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
 
     # Teacher diagnostics on D0 (with the teacher before its update, which produced D0).
     _, log_std = teacher.distribution(params_d0, student.actor, d0_obs_n)
-    student_action = ddpg.actor_apply(student.actor, d0_obs_n)
+    student_action = learner.actor_apply(student.actor, d0_obs_n)
     ret_mean, n_eps = completed_episode_mean(d0_stats)
     metrics = {
         **train_metrics,

@@ -115,6 +115,19 @@ def savez_atomic(path: str, arrays: dict) -> None:
     os.replace(tmp, path)
 
 
+def _train_return(cyc: dict, i: int) -> float | None:
+    """Seed ``i``'s mean return of the exploring episodes completed in the chunk: weighted by the cycles'
+    ``train_episodes`` where the explorer reports them (the built-in ones do), else the mean over cycles;
+    None for an explorer that reports no ``train_return``, or when no episode ended."""
+    if "train_return" not in cyc:
+        return None
+    if "train_episodes" not in cyc:
+        v = np.asarray(cyc["train_return"][i], np.float64)
+        return _clean(np.nanmean(v)) if np.isfinite(v).any() else None
+    n_eps = cyc["train_episodes"][i].sum()
+    return _clean(np.nansum(cyc["train_return"][i] * cyc["train_episodes"][i]) / n_eps) if n_eps > 0 else None
+
+
 def chunk_rows(metrics: dict, chunk: int, wall_time: float, chunk_seconds: float | None = None) -> list[dict]:
     """One row per seed from a chunk's metrics (numpy, leading seed axis).
 
@@ -126,7 +139,6 @@ def chunk_rows(metrics: dict, chunk: int, wall_time: float, chunk_seconds: float
     rows = []
     for i in range(num_seeds):
         eval_ret = np.asarray(metrics["eval_return"][i])
-        n_eps = cyc["train_episodes"][i].sum()
         row = {
             "seed": i,
             "chunk": chunk,
@@ -135,8 +147,7 @@ def chunk_rows(metrics: dict, chunk: int, wall_time: float, chunk_seconds: float
             "eval_return": _clean(eval_ret.mean()),
             "eval_return_std": _clean(eval_ret.std()),
             "eval_length": _clean(np.mean(metrics["eval_length"][i])),
-            "train_return": _clean(np.nansum(cyc["train_return"][i] * cyc["train_episodes"][i]) / n_eps)
-            if n_eps > 0 else None,
+            "train_return": _train_return(cyc, i),
             "wall_time": round(wall_time, 3),
         }
         if chunk_seconds is not None:
