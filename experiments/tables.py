@@ -123,8 +123,9 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     names = [METHOD_NAMES.get(m, m) for m in methods]
     baseline = baseline_for(preset, student)
     protocol = ("" if preset == "paper" and student == "ddpg" else
-                f" The paper's numbers are for its own protocol (DDPG with the paper preset's networks, noise and "
-                f"budgets), not for the {grid_label(preset, student)}: they are there for scale only.")
+                f" The paper's numbers are for its own protocol ({'' if student == 'ddpg' else 'DDPG with '}the "
+                f"paper preset's networks, noise and budgets), not for the {grid_label(preset, student)}: they are "
+                f"there for scale only.")
     md = [f"# Table 2: final evaluation return ({grid_label(preset, student)})", "",
           f"Rows: tasks; columns: methods, mean ± std over the seeds run here, next to the paper's Table 2 "
           f"(Meta / DDPG; {PAPER_SEEDS} seeds, gym v1 tasks, so not directly comparable: our tasks are gymnasium "

@@ -477,6 +477,49 @@ def test_a_visitation_figure_per_task_with_both_samples(tmp_path):
         artefacts.build_parser().parse_args(["--visitation-task", "cartpole"])
 
 
+def test_the_td3_grid_compares_meta_on_td3_with_td3_and_gaussian_noise(tmp_path):
+    """build_all(student='td3'): the baseline is TD3 (normal noise) and the titles name the student."""
+    rng = np.random.default_rng(2)
+    steps = np.arange(1, 11) * 1000
+    data = {"meta-independent": rng.normal(900, 30, (3, 10)), "td3-normal": rng.normal(500, 40, (3, 10))}
+    for method, values in data.items():
+        fabricate_run(tmp_path / "paper" / "hopper" / method, "hopper", method, values, steps, visit_obs=11)
+    results = tmp_path / "results"
+    manifest = artefacts.build_all(str(tmp_path), str(results), "paper", tasks=("hopper",), embedding="pca",
+                                   points_per_panel=40, student="td3")
+    assert manifest["build"]["student"] == "td3" and manifest["not_run"] == []  # the TD3 grid's two methods
+    table = json.loads((results / "table2.json").read_text())
+    assert table["baseline"] == "td3-normal" and table["student"] == "td3"
+    a, b = data["meta-independent"][:, -1], data["td3-normal"][:, -1]
+    assert table["rows"][0]["welch"]["p"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue)
+    md = (results / "table2.md").read_text()
+    assert md.startswith("# Table 2: final evaluation return (paper preset, TD3 student)")
+    assert "Meta (ind.) − TD3 (normal noise)" in md and "for scale only" in md
+    assert (results / "README.md").read_text().startswith("# Results (paper preset, TD3 student)")
+    assert "TD3 baseline's best" in (results / "steps_to_threshold.md").read_text()
+    with open(results / "steps_to_threshold.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert float(rows[0]["threshold"]) == pytest.approx(data["td3-normal"].mean(0).max())
+    assert (results / "visitation_hopper.png").exists()
+    assert (results / "cells" / "hopper" / "td3-normal" / "visits.npz").exists()
+    with pytest.raises(ValueError, match="no grid for student"):
+        grid.baseline_for("paper", "sac")
+
+
+def test_reproduce_with_td3_runs_its_grid_in_its_own_folders(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert reproduce.main(["--tasks", "hopper", "--student", "td3", "--physics", "mujoco", "--dry-run"]) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if "paper/hopper/" in line]
+    assert len(lines) == 2  # meta-independent and td3-normal
+    meta, noise = (next(line for line in lines if f"/{m}:" in line) for m in ("meta-independent", "td3-normal"))
+    assert "--student=td3" in meta and "--method=meta" in meta and "--physics=mujoco" in meta
+    assert "--out runs/reproduce-td3/paper/hopper/meta-independent" in meta
+    assert "--student=td3" in noise and "--noise=normal --set noise.stddev=0.1" in noise
+    assert reproduce.main(["--tasks", "hopper", "--student", "td3", "--methods", "ddpg-paramnoise", "--dry-run"]) == 2
+    assert "valid: meta-independent, td3-normal" in capsys.readouterr().err
+    assert not (tmp_path / "runs").exists()
+
+
 def test_reproduce_on_the_c_engine_keeps_its_own_folders(tmp_path, capsys, monkeypatch):
     """--physics=mujoco: MuJoCo cells get --physics=mujoco (pendulum, a JAX task, does not), and the grid goes
     to runs/reproduce-mujoco and results/mujoco unless folders are given; brax models are refused."""
