@@ -1,8 +1,10 @@
-"""The README's two commands are what CI runs, and every link in the README and docs/ resolves."""
+"""The README's two commands are what CI runs, every link in the README and docs/ resolves, and the
+plug-in examples (the README's explorer, docs/running.md's student) train."""
 
 import os
 import re
 
+import numpy as np
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -73,24 +75,36 @@ def test_console_scripts_are_the_modules_main_functions():
         assert callable(getattr(importlib.import_module(module), func))
 
 
-def test_the_explorer_example_of_running_md_trains(monkeypatch):
+@pytest.mark.parametrize("example", ["explorer", "student"])
+def test_the_plugin_examples_of_the_readme_and_running_md_train(example, monkeypatch):
     import dataclasses
 
     import jax
 
     from metapg_jax import config as config_lib
-    from metapg_jax import explorers
+    from metapg_jax import explorers, students
     from metapg_jax.train import make_train, seed_keys, vmap_seeds
 
-    monkeypatch.setattr(explorers, "_FACTORIES", dict(explorers._FACTORIES))  # no registration leaks out
-    monkeypatch.setattr(config_lib, "_REGISTERED_METHODS", set(config_lib._REGISTERED_METHODS))
-    text = read("docs/running.md")
-    block = text[text.index("## Writing an explorer"):]
+    for module in (explorers, students):  # no registration leaks out
+        monkeypatch.setattr(module, "_FACTORIES", dict(module._FACTORIES))
+    for name in ("_REGISTERED_METHODS", "_REGISTERED_STUDENTS"):
+        monkeypatch.setattr(config_lib, name, set(getattr(config_lib, name)))
+    if example == "explorer":  # the README's library example, up to its 8-seed training
+        code = re.search(r"```python\n(.*?)```", read("README.md"), re.S).group(1)
+        code = code[:code.index("trainer = make_train")]
+    else:
+        text = read("docs/running.md")
+        code = re.search(r"```python\n(.*?)```", text[text.index("## Writing an explorer or a student"):], re.S).group(1)
     namespace = {}
-    exec(re.search(r"```python\n(.*?)```", block, re.S).group(1), namespace)
+    exec(code, namespace)
     cfg = namespace["cfg"]
-    cfg = dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, total_steps=400, eval_every=200, eval_episodes=1))
+    cfg = dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, total_steps=600, eval_every=300, eval_episodes=1),
+                              meta=dataclasses.replace(cfg.meta, hidden=(16, 16)),
+                              ddpg=dataclasses.replace(cfg.ddpg, hidden=(16, 16)))
     trainer = make_train(cfg)
+    if example == "student":
+        assert type(trainer.student).__name__ == "HuberDDPG"
     state = jax.jit(vmap_seeds(trainer.init))(seed_keys(0, 2))
     state, metrics = jax.jit(vmap_seeds(trainer.train_chunk))(state)
-    assert metrics["eval_return"].shape == (2, 1) and int(state.env_steps[0]) == 200
+    assert metrics["eval_return"].shape == (2, 1) and int(state.env_steps[0]) == 300
+    assert np.all(np.asarray(metrics["cycle"]["finite"]))
