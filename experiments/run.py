@@ -392,6 +392,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
                 "devices": [str(d) for d in jax.devices()], **reporting.provenance()})
     elif extend_from is not None and main_process:
         _record_extension(out, cfg, a, extend_from)
+    _barrier("metapg-run-folder")  # process 0 has (re)made the folder before anyone writes into it
 
     trainer = make_train(cfg)
     keys = seed_keys(seed, num_seeds)
@@ -420,8 +421,9 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
         state = jax.device_put(state, seeds_sharding)
         start = int(meta["chunks_done"])
         first_cycle = start * cfg.cycles_per_chunk
-        _truncate_jsonl(os.path.join(out, "metrics.jsonl"), lambda r: r["chunk"] < start)
-        _truncate_jsonl(os.path.join(out, "cycles.jsonl"), lambda r: r["cycle"] < first_cycle)
+        if main_process:  # the files are process 0's
+            _truncate_jsonl(os.path.join(out, "metrics.jsonl"), lambda r: r["chunk"] < start)
+            _truncate_jsonl(os.path.join(out, "cycles.jsonl"), lambda r: r["cycle"] < first_cycle)
         print(f"resumed after {start} of {cfg.num_chunks} chunks ({start * cfg.run.eval_every:,} env steps)",
               flush=True)
     else:
@@ -436,8 +438,9 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
     def ckpt_meta():
         return {"config": config_lib.to_dict(cfg), "run_args": a}
 
-    metrics_writer = reporting.JsonlWriter(os.path.join(out, "metrics.jsonl"))
-    cycle_writer = reporting.JsonlWriter(os.path.join(out, "cycles.jsonl")) if cfg.run.method == "meta" else None
+    metrics_writer = reporting.JsonlWriter(os.path.join(out, "metrics.jsonl")) if main_process else None
+    cycle_writer = (reporting.JsonlWriter(os.path.join(out, "cycles.jsonl"))
+                    if cfg.run.method == "meta" and main_process else None)
     tb_writer = None
     if tensorboard and main_process:
         tb_writer = reporting.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle)
@@ -446,7 +449,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
             tb_writer.resume(reporting.read_jsonl(os.path.join(out, "metrics.jsonl")),
                              reporting.read_jsonl(cycles_path) if os.path.exists(cycles_path) else [],
                              start * cfg.run.eval_every)
-    progress = reporting.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet,
+    progress = reporting.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet or not main_process,
                                   initial=start * cfg.run.eval_every)  # rates: this call's steps only
     last_ckpt = time.perf_counter()
     t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
@@ -492,7 +495,8 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
                     break
     finally:
         progress.close()
-        metrics_writer.close()
+        if metrics_writer is not None:
+            metrics_writer.close()
         if cycle_writer is not None:
             cycle_writer.close()
         if tb_writer is not None:
@@ -501,9 +505,9 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
     if status:
         return status
     train_s = time.perf_counter() - t_train
+    state = _to_host(state)  # a collective with several processes: every process takes part
     if not main_process:
         return 0
-    state = _to_host(state)
     finalize(cfg, out, state, num_seeds, plot=plot, extra={
         "compile_seconds": round(compile_s, 2), **cache_record,
         "train_seconds": round(train_s, 2),
@@ -563,6 +567,16 @@ def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool
                  f"compile {summary['compile_seconds']:.1f} s, peak RSS {summary['peak_rss_mib']:,.0f} MiB")
     print(line)
     return summary
+
+
+def _barrier(name: str) -> None:
+    """With several processes: waits until every process got here (a no-op with one)."""
+    import jax
+
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices(name)
 
 
 def _to_host(tree):
