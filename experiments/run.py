@@ -352,21 +352,6 @@ class _Interrupt:
         return False
 
 
-def _truncate_jsonl(path: str, keep) -> None:
-    """Keeps the rows for which ``keep(row)`` holds (drops rows written after the checkpoint), atomically."""
-    from metapg_jax import reporting
-
-    if not os.path.exists(path):
-        return
-    kept = [row for row in reporting.read_jsonl(path) if keep(row)]
-    tmp = path + ".tmp"
-    with open(tmp, "w") as f:
-        f.writelines(json.dumps(row) + "\n" for row in kept)
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)
-
-
 def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
         plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0,
         extend_from: int | None = None, tensorboard: bool = False) -> int:
@@ -422,8 +407,8 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
         start = int(meta["chunks_done"])
         first_cycle = start * cfg.cycles_per_chunk
         if main_process:  # the files are process 0's
-            _truncate_jsonl(os.path.join(out, "metrics.jsonl"), lambda r: r["chunk"] < start)
-            _truncate_jsonl(os.path.join(out, "cycles.jsonl"), lambda r: r["cycle"] < first_cycle)
+            reporting.truncate_jsonl(os.path.join(out, "metrics.jsonl"), lambda r: r["chunk"] < start)
+            reporting.truncate_jsonl(os.path.join(out, "cycles.jsonl"), lambda r: r["cycle"] < first_cycle)
         print(f"resumed after {start} of {cfg.num_chunks} chunks ({start * cfg.run.eval_every:,} env steps)",
               flush=True)
     else:

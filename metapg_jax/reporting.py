@@ -94,6 +94,19 @@ class JsonlWriter:
         self._f.close()
 
 
+def truncate_jsonl(path: str, keep) -> None:
+    """Keeps the rows for which ``keep(row)`` holds (drops rows written after a checkpoint), atomically."""
+    if not os.path.exists(path):
+        return
+    kept = [row for row in read_jsonl(path) if keep(row)]
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.writelines(json.dumps(row) + "\n" for row in kept)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
 def read_jsonl(path: str) -> list[dict]:
     """The rows of a JSONL file; a last line cut by a kill is skipped."""
     rows = []

@@ -68,7 +68,9 @@ class Teacher:
 
     def raw_init_log_std(self) -> float:
         lo, hi = self.cfg.min_log_std, self.cfg.max_log_std
-        return math.atanh(2.0 * (self.cfg.init_log_std - lo) / (hi - lo) - 1.0)
+        x = 2.0 * (self.cfg.init_log_std - lo) / (hi - lo) - 1.0
+        # In float64 for the config's numbers; in float32 where a sweep traces them (metapg_jax.sweep).
+        return math.atanh(x) if isinstance(x, float) else jnp.arctanh(x)
 
     def _mean_net(self) -> MLP:
         return MLP(self.action_size, tuple(self.cfg.hidden), self.cfg.layer_norm)

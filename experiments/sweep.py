@@ -1,0 +1,369 @@
+"""Hyperparameter sweeps: every setting of a grid and every seed in one compiled program per group.
+
+    python -m experiments.sweep --env=pendulum --method=meta --seeds=4 \\
+        --grid meta.lr=1e-4,3e-4,1e-3 --grid meta.init_log_std=-1,-0.5,0     # 9 settings x 4 seeds, one program
+    python -m experiments.sweep --resume runs/sweep-pendulum-meta-s0                    # continue it
+
+Each combination of the ``--grid`` values (their cartesian product) is a *setting*: the run that
+``experiments.run`` with the same options and ``--set FIELD=VALUE`` for each grid field would
+train (validated as such, before anything compiles). Settings whose grid fields only enter the
+computation as numbers share one program, vmapped over (settings x seeds) (``metapg_jax.sweep``);
+fields that change shapes or the program's structure (network sizes, schedules, loop counts, the
+teacher design, a noise kind) are found by tracing and split the settings into one program per
+combination of their values, run one after another. Seeds: setting *k*'s seed *i* is the key
+``experiments.run --seed S`` gives seed *i*, so a setting's numbers are those of its separate run up
+to float32 round-off (another batch shape).
+
+Writes under ``--out`` (default ``runs/sweep-<env>-<method>[-<student>]-s<seed>``):
+``sweep.json`` (the options, the grid, each setting's values and program group, provenance),
+``metrics.jsonl`` (``experiments.run``'s rows with a ``setting`` column, appended as chunks finish),
+``summary.md`` / ``summary.json`` (per setting: final return mean ± std over seeds and its 95% CI,
+the best setting marked, settings with non-finite parameters named), ``sweep.png`` (final return
+per setting with its CI) and ``groups/<g>/checkpoints``. ``--resume OUT`` continues every group
+from its latest checkpoint (a finished group is skipped). A setting whose parameters become
+non-finite keeps running (the others are unaffected) and is reported, not ranked.
+
+Exit status: 0 done; 2 bad input (one ``error:`` line, before anything compiles); 130 interrupted
+(checkpointed; ``--resume`` continues).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import json
+import os
+import shutil
+import signal
+import sys
+import time
+
+from experiments import run as run_lib
+from metapg_jax import compile_cache
+
+SWEEP_ARGS = ("env", "method", "teacher", "student", "preset", "noise", "seeds", "seed", "steps", "source",
+              "physics", "overrides", "plugins")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m experiments.sweep",
+                                description="Run a grid of config settings x seeds as one compiled program per "
+                                            "group of shape-compatible settings.")
+    for name in ("--env", "--method", "--teacher", "--student", "--preset", "--noise", "--source", "--physics"):
+        p.add_argument(name, default=None, help=f"as experiments.run {name}")
+    p.add_argument("--seeds", type=int, default=None, help="seeds per setting (default 8)")
+    p.add_argument("--seed", type=int, default=None, help="base PRNG seed, as experiments.run (default 0)")
+    p.add_argument("--steps", type=int, default=None, help="env steps per seed (default: the task's paper budget)")
+    p.add_argument("--set", dest="overrides", action="append", default=None, metavar="GROUP.FIELD=VALUE",
+                   help="a fixed override of every setting (as experiments.run --set)")
+    p.add_argument("--plugin", dest="plugins", action="append", default=None, metavar="MODULE|FILE.py",
+                   help="as experiments.run --plugin")
+    p.add_argument("--grid", action="append", default=[], metavar="GROUP.FIELD=V1,V2,...",
+                   help="a swept field and its values (repeatable; the settings are the cartesian product)")
+    p.add_argument("--out", default=None, help="output folder (default runs/sweep-<env>-<method>[-<student>]-s<seed>)")
+    p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
+    p.add_argument("--resume", default=None, metavar="SWEEP_DIR", help="continue the sweep in SWEEP_DIR")
+    p.add_argument("--checkpoint-minutes", type=float, default=5.0,
+                   help="minimum minutes between checkpoints of a group (and at its end; default 5)")
+    p.add_argument("--compile-cache", default=None, metavar="DIR|off", help="as experiments.run --compile-cache")
+    p.add_argument("--no-plot", action="store_true", help="skip sweep.png")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    return p
+
+
+def parse_grid(items: list[str]) -> dict[str, list[str]]:
+    """{field: [value strings]} from ``--grid FIELD=V1,V2`` options, refusing malformed ones."""
+    grid = {}
+    for item in items:
+        field, sep, values = item.partition("=")
+        field = field.strip()
+        if not sep or not field:
+            raise ValueError(f"--grid expects GROUP.FIELD=V1,V2,..., got {item!r}")
+        if field in grid:
+            raise ValueError(f"--grid names {field} twice")
+        # Network sizes are written 64,64: separate such values with ';' (--grid ddpg.hidden=64,64;256,256).
+        vals = [v.strip() for v in (values.split(";") if ";" in values else values.split(","))]
+        if not vals or any(not v for v in vals):
+            raise ValueError(f"--grid {field}: empty value in {values!r}")
+        if len(set(vals)) != len(vals):
+            raise ValueError(f"--grid {field}: a value is given twice in {values!r}")
+        grid[field] = vals
+    if not grid:
+        raise ValueError("give at least one --grid GROUP.FIELD=V1,V2,...")
+    return grid
+
+
+def plan(a: dict, grid: dict[str, list[str]]):
+    """The settings (validated configs) and their program groups; raises ValueError on bad input.
+
+    Returns (settings, configs, groups): ``settings[k]`` = {field: value string}; ``groups`` = list of
+    {"settings": [k...], "batched": [fields varying within the program], "fixed": {structural field: value}}."""
+    import envs
+    from metapg_jax.config import to_dict
+    from metapg_jax.sweep import set_fields, structural_fields
+
+    fixed = run_lib.parse_overrides(a["overrides"])
+    for field in grid:
+        if field in fixed:
+            raise ValueError(f"{field} is both swept (--grid) and fixed (--set)")
+    settings = [dict(zip(grid, values)) for values in itertools.product(*grid.values())]
+    configs = []
+    for s in settings:
+        try:
+            configs.append(run_lib.config_from_run_args(
+                {**a, "overrides": list(a["overrides"]) + [f"{k}={v}" for k, v in s.items()]}))
+        except ValueError as err:
+            raise ValueError(f"setting {', '.join(f'{k}={v}' for k, v in s.items())}: {err}") from None
+    base = configs[0]
+    env = envs.make(base.env.name, source=base.env.source, episode_length=base.episode_length,
+                    physics=base.env.physics)
+    structural = structural_fields(base, env, list(grid))
+    batched = [f for f in grid if f not in structural]
+    groups = {}
+    for k, (s, cfg) in enumerate(zip(settings, configs)):
+        groups.setdefault(tuple(s[f] for f in structural), []).append(k)
+    out = []
+    for key, members in groups.items():
+        # A batched field must change nothing but itself (make_config derives some fields from others).
+        first = configs[members[0]]
+        same, apart = [members[0]], []
+        for k in members[1:]:
+            rebuilt = set_fields(first, {f: _get(configs[k], f) for f in batched})
+            (same if to_dict(rebuilt) == to_dict(configs[k]) else apart).append(k)
+        for ks in [same] + [[k] for k in apart]:
+            out.append({"settings": ks, "batched": batched if len(ks) > 1 else [],
+                        "fixed": dict(zip(structural, key))})
+    return settings, configs, out, env
+
+
+def _get(cfg, dotted):
+    from metapg_jax.sweep import get_field
+
+    return get_field(cfg, dotted)
+
+
+def default_out(a: dict) -> str:
+    student = "" if a["student"] == "ddpg" else f"-{a['student']}"
+    return os.path.join("runs", f"sweep-{a['env']}-{a['method']}{student}-s{a['seed']}")
+
+
+def prepare(args) -> tuple[dict, dict, str]:
+    """(run args, grid, out) from the command line or, with --resume, from the stored sweep.json."""
+    if args.resume:
+        given = [k for k in SWEEP_ARGS if getattr(args, k) is not None] + (["grid"] if args.grid else [])
+        if given:
+            raise ValueError(f"--resume continues the stored sweep; do not give {', '.join('--' + k for k in given)}")
+        path = os.path.join(args.resume, "sweep.json")
+        if not os.path.exists(path):
+            raise ValueError(f"--resume {args.resume}: no sweep.json there (not a sweep folder)")
+        stored = json.load(open(path))
+        return stored["run_args"], stored["grid"], args.resume
+    a = run_lib.run_args(argparse.Namespace(**{k: getattr(args, k) for k in SWEEP_ARGS}))
+    grid = parse_grid(args.grid)
+    out = args.out or default_out(a)
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise ValueError(f"--out {out} is a file, not a folder")
+    if os.path.exists(out) and os.listdir(out) and not args.overwrite:
+        raise ValueError(f"output folder {out} exists; pass --resume {out} to continue it, --overwrite to replace it, "
+                         f"or --out elsewhere")
+    return a, grid, out
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        if args.checkpoint_minutes <= 0:
+            raise ValueError("--checkpoint-minutes must be positive")
+        a, grid, out = prepare(args)
+        settings, configs, groups, env = plan(a, grid)
+        cache = compile_cache.resolve(args.compile_cache)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    compile_cache.enable(cache)
+    from metapg_jax import reporting
+    from metapg_jax.config import to_dict
+
+    if not args.resume:
+        if args.overwrite and os.path.exists(out):
+            shutil.rmtree(out)
+        os.makedirs(out, exist_ok=True)
+        reporting.write_json_atomic(os.path.join(out, "sweep.json"), {
+            "run_args": a, "grid": grid,
+            "settings": [{"setting": k, "values": s, "group": next(g for g, grp in enumerate(groups)
+                                                                  if k in grp["settings"])}
+                         for k, s in enumerate(settings)],
+            "groups": groups, "config": to_dict(configs[0]), **reporting.provenance()})
+    n = len(settings) * a["seeds"]
+    print(f"sweep of {len(settings)} settings x {a['seeds']} seeds = {n} runs of {run_lib.run_label(configs[0])} "
+          f"({configs[0].run.total_steps:,} env steps each) in {len(groups)} program(s); output {out}", flush=True)
+    for g, group in enumerate(groups):
+        status = run_group(out, g, group, settings, configs, env, a, args)
+        if status:
+            return status
+    write_summary(out, settings, configs, plot=not args.no_plot)
+    return 0
+
+
+def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, args) -> int:
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    from metapg_jax import reporting
+    from metapg_jax.checkpoint import Checkpointer
+    from metapg_jax.loop import seed_keys, vmap_seeds
+    from metapg_jax.sweep import Sweep
+
+    members, num_seeds = group["settings"], a["seeds"]
+    cfg = configs[members[0]]
+    sweep = Sweep(cfg, env, tuple(group["batched"]))
+    values = jnp.repeat(sweep.values([configs[k] for k in members]), num_seeds, axis=0)  # setting-major
+    keys = jnp.concatenate([seed_keys(a["seed"], num_seeds)] * len(members))
+    checkpointer = Checkpointer(os.path.join(out, "groups", str(g), "checkpoints"))
+    done = checkpointer.steps()
+    start = done[-1] if done else 0
+    label = f"group {g + 1}: settings {', '.join(map(str, members))}" + (
+        f" (batched: {', '.join(group['batched'])})" if group["batched"] else "")
+    if start == cfg.num_chunks:
+        print(f"{label}: done, skipped", flush=True)
+        checkpointer.close()
+        return 0
+    t0 = time.perf_counter()
+    init_fn = jax.jit(vmap_seeds(sweep.init))
+    if start:
+        state, _ = checkpointer.restore(jax.eval_shape(init_fn, keys, values))
+        metrics_path = os.path.join(out, "metrics.jsonl")
+        reporting.truncate_jsonl(metrics_path, lambda r: r["setting"] not in members or r["chunk"] < start)
+    else:
+        state = init_fn(keys, values)
+    chunk_fn = jax.jit(vmap_seeds(sweep.train_chunk), donate_argnums=0).lower(state, values).compile()
+    print(f"{label}: {len(members)} x {num_seeds} runs, compiled in {time.perf_counter() - t0:.1f} s"
+          + (f", resumed after {start} of {cfg.num_chunks} chunks" if start else ""), flush=True)
+    writer = reporting.JsonlWriter(os.path.join(out, "metrics.jsonl"))
+    progress = reporting.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
+                                  disable=args.quiet, initial=start * cfg.run.eval_every)
+    interrupted = []
+    old = signal.signal(signal.SIGINT, lambda *_: interrupted.append(True))
+    last_ckpt = t_train = t_chunk = time.perf_counter()
+    try:
+        for chunk in range(start, cfg.num_chunks):
+            state, metrics = chunk_fn(state, values)
+            metrics = jax.device_get(metrics)
+            now = time.perf_counter()
+            rows = reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
+            t_chunk = now
+            finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
+            for i, row in enumerate(rows):
+                row["setting"], row["seed"] = members[i // num_seeds], i % num_seeds
+                row["finite"] = bool(finite[i])
+            writer.write(rows)
+            progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
+            last = chunk + 1 == cfg.num_chunks
+            if last or interrupted or time.perf_counter() - last_ckpt >= 60 * args.checkpoint_minutes:
+                checkpointer.save(chunk + 1, state, {"group": g, "settings": members})
+                last_ckpt = time.perf_counter()
+            if interrupted and not last:
+                print(f"\ninterrupted: checkpointed after chunk {chunk + 1} of {cfg.num_chunks} of group {g + 1}; "
+                      f"continue with: python -m experiments.sweep --resume {out}", file=sys.stderr, flush=True)
+                return 130
+    finally:
+        signal.signal(signal.SIGINT, old)
+        progress.close()
+        writer.close()
+        checkpointer.close()
+    return 0
+
+
+def summary_rows(out: str, settings, configs) -> list[dict]:
+    """Per setting: final return (experiments.stats: mean of each seed's last 10% of evaluations) mean ±
+    std over seeds and the 95% t interval; a setting with non-finite parameters is flagged."""
+    import numpy as np
+
+    from experiments.stats import final_returns, mean_std, t_interval
+    from metapg_jax import reporting
+
+    rows = reporting.read_jsonl(os.path.join(out, "metrics.jsonl"))
+    result = []
+    for k, s in enumerate(settings):
+        mine = [r for r in rows if r["setting"] == k]
+        seeds = sorted({r["seed"] for r in mine})
+        chunks = sorted({r["chunk"] for r in mine})
+        entry = {"setting": k, "values": s, "seeds": len(seeds), "evaluations": len(chunks),
+                 "complete": len(chunks) == configs[k].num_chunks, "finite": all(r.get("finite", True) for r in mine)}
+        if mine:
+            curve = np.full((len(seeds), len(chunks)), np.nan)
+            for r in mine:
+                curve[seeds.index(r["seed"]), chunks.index(r["chunk"])] = (
+                    np.nan if r["eval_return"] is None else r["eval_return"])
+            per_seed = final_returns(curve)
+            entry["per_seed"] = [float(x) for x in per_seed]
+            if entry["finite"] and np.isfinite(per_seed).all():
+                entry["mean"], entry["std"] = mean_std(per_seed)
+                mean, half = t_interval(per_seed)
+                entry["ci95"] = [mean - half, mean + half] if len(per_seed) > 1 else None
+        result.append(entry)
+    ranked = [e for e in result if "mean" in e and e["complete"]]
+    if ranked:
+        max(ranked, key=lambda e: e["mean"])["best"] = True
+    return result
+
+
+def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
+    from experiments.stats import FINAL_DEFINITION, fmt
+    from metapg_jax import reporting
+
+    rows = summary_rows(out, settings, configs)
+    fields = list(settings[0])
+    md = [f"# Sweep: final evaluation return per setting", "",
+          f"- {FINAL_DEFINITION}; ± is the standard deviation over seeds, CI the 95% t interval of the mean.",
+          "- **best**: the highest mean among finished settings with finite parameters.", "",
+          "| setting | " + " | ".join(f"`{f}`" for f in fields) + " | final return | 95% CI | seeds | |",
+          "|---|" + "---|" * len(fields) + "---|---|---|---|"]
+    for e in rows:
+        final = f"{fmt(e['mean'])} ± {fmt(e['std'])}" if "mean" in e else (
+            "non-finite parameters" if not e["finite"] else "not run" if not e.get("per_seed") else "n/a")
+        ci = f"[{fmt(e['ci95'][0])}, {fmt(e['ci95'][1])}]" if e.get("ci95") else ""
+        note = "**best**" if e.get("best") else ("incomplete" if e.get("per_seed") and not e["complete"] else "")
+        md.append(f"| {e['setting']} | " + " | ".join(e["values"][f] for f in fields) +
+                  f" | {final} | {ci} | {e['seeds']} | {note} |")
+    with open(os.path.join(out, "summary.md"), "w") as f:
+        f.write("\n".join(md) + "\n")
+    reporting.write_json_atomic(os.path.join(out, "summary.json"), {"final_definition": FINAL_DEFINITION,
+                                                                    "settings": rows})
+    if plot:
+        _plot(out, rows, fields)
+    best = next((e for e in rows if e.get("best")), None)
+    print(f"summary: {out}/summary.md" + (f"; best: setting {best['setting']} "
+                                           f"({', '.join(f'{k}={v}' for k, v in best['values'].items())}): "
+                                           f"{fmt(best['mean'])} ± {fmt(best['std'])}" if best else ""), flush=True)
+    return rows
+
+
+def _plot(out: str, rows: list[dict], fields: list[str]) -> None:
+    from experiments.figures import pyplot
+
+    plt = pyplot()
+    shown = [e for e in rows if "mean" in e]
+    if not shown:
+        return
+    fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(shown) + 2), 3.6), dpi=120)
+    x = range(len(shown))
+    lo = [e["mean"] - e["ci95"][0] if e.get("ci95") else 0.0 for e in shown]
+    hi = [e["ci95"][1] - e["mean"] if e.get("ci95") else 0.0 for e in shown]
+    ax.errorbar(x, [e["mean"] for e in shown], yerr=[lo, hi], fmt="o", capsize=3,
+                color="tab:red")
+    for i, e in zip(x, shown):
+        if e.get("best"):
+            ax.plot([i], [e["mean"]], "*", color="black", markersize=12)
+    ax.set_xticks(list(x))
+    ax.set_xticklabels(["\n".join(f"{v}" for v in e["values"].values()) for e in shown], fontsize=7)
+    ax.set_xlabel(" / ".join(fields), fontsize=8)
+    ax.set_ylabel("final return (mean, 95% CI)")
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, "sweep.png"))
+    plt.close(fig)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

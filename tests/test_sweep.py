@@ -1,0 +1,115 @@
+"""experiments.sweep / metapg_jax.sweep: settings x seeds in one program equal separate runs of the
+settings (up to float32 round-off: the batch shape differs), structural fields get programs of their
+own, bad input is refused before anything compiles, and an interrupted sweep resumes bit for bit."""
+
+import json
+import os
+import signal
+
+import numpy as np
+import pytest
+
+import envs
+from experiments import run, sweep
+from metapg_jax import reporting
+from metapg_jax.sweep import structural_fields
+from tests.helpers import tiny_config
+
+TINY = ["--env=pendulum", "--method=meta", "--seeds=2", "--steps=600", "--quiet", "--compile-cache=off",
+        "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
+        "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--set", "ddpg.batch_size=16",
+        "--set", "run.train_steps=5", "--set", "meta.explore_steps=50", "--set", "meta.eval_steps=100",
+        "--set", "env.episode_length=60"]
+
+
+def _rows(path):
+    return reporting.read_jsonl(os.path.join(path, "metrics.jsonl"))
+
+
+def test_a_sweep_equals_separate_runs_of_its_settings(tmp_path):
+    out = str(tmp_path / "sweep")
+    grid = ["--grid", "meta.lr=1e-4,1e-2", "--grid", "ddpg.tau=0.01,0.5"]
+    assert sweep.main([*TINY, *grid, "--out", out, "--no-plot"]) == 0
+    stored = json.load(open(os.path.join(out, "sweep.json")))
+    assert len(stored["settings"]) == 4 and len(stored["groups"]) == 1  # one program for all 4 x 2 runs
+    assert stored["groups"][0]["batched"] == ["meta.lr", "ddpg.tau"]
+    rows = _rows(out)
+    assert sorted((r["setting"], r["seed"], r["chunk"]) for r in rows) == [
+        (k, s, c) for k in range(4) for s in range(2) for c in range(2)]
+    finals = {}
+    for k in (0, 3):  # (1e-4, 0.01) and (1e-2, 0.5): the corners
+        values = stored["settings"][k]["values"]
+        single = str(tmp_path / f"run{k}")
+        argv = [a for a in TINY if a != "--quiet"] + ["--quiet", "--no-plot", "--out", single]
+        for field, value in values.items():
+            argv += ["--set", f"{field}={value}"]
+        assert run.main(argv) == 0
+        mine = sorted((r["seed"], r["chunk"], r["eval_return"], r["critic_loss"]) for r in rows if r["setting"] == k)
+        theirs = sorted((r["seed"], r["chunk"], r["eval_return"], r["critic_loss"]) for r in _rows(single))
+        assert [m[:2] for m in mine] == [t[:2] for t in theirs]
+        np.testing.assert_allclose([m[2:] for m in mine], [t[2:] for t in theirs], rtol=1e-4, atol=1e-3)
+        finals[k] = np.array([m[3] for m in mine])
+    assert np.abs(finals[0] - finals[3]).max() > 1e-2  # the settings do differ
+    summary = json.load(open(os.path.join(out, "summary.json")))["settings"]
+    assert sum(bool(e.get("best")) for e in summary) == 1 and all(e["seeds"] == 2 and e["complete"] for e in summary)
+    best = max(summary, key=lambda e: e["mean"])
+    assert best.get("best") and best["ci95"][0] <= best["mean"] <= best["ci95"][1]
+    assert "**best**" in open(os.path.join(out, "summary.md")).read()
+
+
+def test_fields_that_change_the_program_are_found_and_split_into_programs(tmp_path):
+    cfg = tiny_config("meta")
+    env = envs.make("pendulum", episode_length=cfg.episode_length)
+    fields = ["meta.lr", "meta.init_log_std", "ddpg.tau", "noise.stddev", "ddpg.hidden", "meta.teacher",
+              "meta.teacher_steps", "run.train_steps", "meta.normalize_meta_reward"]
+    assert structural_fields(cfg, env, fields) == ["ddpg.hidden", "meta.teacher", "meta.teacher_steps",
+                                                   "run.train_steps", "meta.normalize_meta_reward"]
+    a = {**run.RUN_ARGS, "seeds": 2, "steps": 600, "overrides": TINY[TINY.index("--set"):][1::2]}
+    settings, configs, groups, _ = sweep.plan(a, {"meta.lr": ["1e-4", "1e-3"], "meta.teacher": ["independent", "variance"]})
+    assert len(settings) == 4
+    assert [(g["settings"], g["batched"], g["fixed"]) for g in groups] == [
+        ([0, 2], ["meta.lr"], {"meta.teacher": "independent"}), ([1, 3], ["meta.lr"], {"meta.teacher": "variance"})]
+
+
+@pytest.mark.parametrize("grid, message", [
+    (["--grid", "meta.nope=1,2"], "unknown config field 'meta.nope'"),
+    (["--grid", "meta.lr="], "empty value"),
+    (["--grid", "meta.lr=1e-3,,1e-4"], "empty value"),
+    (["--grid", "meta.lr=fast,slow"], "meta.lr"),
+    (["--grid", "meta.lr=1e-3,1e-3"], "given twice"),
+    (["--grid", "run.eval_every=300,600"], "both swept"),
+    (["--grid", "run.method=ddpg,meta"], "cannot be overridden"),
+    (["--grid", "meta.lr=-1,1e-3"], "meta.lr"),
+    ([], "at least one --grid"),
+])
+def test_bad_grids_are_refused_before_compiling(grid, message, tmp_path, capsys):
+    out = tmp_path / "sweep"
+    assert sweep.main([*TINY, *grid, "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.startswith("error: ") and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_an_interrupted_sweep_resumes_to_the_numbers_of_an_uninterrupted_one(tmp_path, monkeypatch):
+    grid = ["--grid", "meta.lr=1e-4,1e-2", "--steps=900", "--no-plot", f"--compile-cache={tmp_path / 'xla'}"]
+    whole, part = str(tmp_path / "whole"), str(tmp_path / "part")
+    assert sweep.main([*TINY, *grid, "--out", whole]) == 0
+    write = reporting.JsonlWriter.write
+
+    def interrupt_once(self, rows):  # Ctrl-C while the first chunk's rows are written
+        write(self, rows)
+        if not getattr(interrupt_once, "sent", False):
+            interrupt_once.sent = True
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(reporting.JsonlWriter, "write", interrupt_once)
+    assert sweep.main([*TINY, *grid, "--out", part]) == 130
+    monkeypatch.setattr(reporting.JsonlWriter, "write", write)
+    assert not os.path.exists(os.path.join(part, "summary.json"))
+    assert sweep.main(["--resume", part, "--quiet", "--no-plot", f"--compile-cache={tmp_path / 'xla'}"]) == 0
+    key = lambda r: (r["setting"], r["seed"], r["chunk"])
+    strip = lambda rows: sorted(({k: v for k, v in r.items() if k not in ("wall_time", "chunk_seconds")}
+                                 for r in rows), key=key)
+    assert strip(_rows(part)) == strip(_rows(whole))
+    assert json.load(open(os.path.join(part, "summary.json"))) == json.load(open(os.path.join(whole, "summary.json")))
+    assert sweep.main(["--resume", part, "--grid", "meta.lr=1"]) == 2
