@@ -24,6 +24,12 @@ shorter cell. Next to each cell's
 run outputs, ``reproduce.json`` records the commit, the machine, the command
 and the accumulated wall time of this script's calls for that cell.
 
+``--launcher ray`` runs every cell that has work left as a Ray task (``run_grid_ray``; a local Ray
+instance unless ``--ray-address`` names a cluster): the same planning and archiving in the worker, and
+a cell whose worker died is retried by Ray and resumes from its checkpoint (docs/reproducing.md).
+``--student td3`` runs the TD3 grid (``experiments.grid.GRIDS``) into ``runs/reproduce-td3`` and
+``results/td3``.
+
 Then ``experiments.artefacts.build_all`` rebuilds Table 2, the learning
 curves, steps-to-threshold, the teacher-design and state-visitation figures,
 ``README.md`` and ``manifest.json`` under ``--results-dir`` (``<results-dir>/
@@ -90,7 +96,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tensorboard", action="store_true",
                    help="each cell also writes TensorBoard scalars to <cell>/tensorboard/seed_<i>/ (experiments.run "
                         "--tensorboard; needs the tensorboard extra, tensorboardX)")
+    p.add_argument("--checkpoint-every", type=int, default=0, metavar="CHUNKS",
+                   help="each cell checkpoints every CHUNKS chunks (experiments.run --checkpoint-every; default 0: "
+                        "every --checkpoint-minutes)")
+    p.add_argument("--checkpoint-minutes", type=float, default=5.0,
+                   help="each cell's minimum minutes between checkpoints (experiments.run; default 5)")
     p.add_argument("--dry-run", action="store_true", help="print what would be run, skipped or resumed; do nothing")
+    p.add_argument("--launcher", default="local", choices=("local", "ray"),
+                   help="local (default): the cells one after another in this process; ray: each cell a Ray task "
+                        "(the ray extra), on a local Ray instance started here, or on --ray-address")
+    p.add_argument("--ray-address", default=None, metavar="HOST:PORT|auto",
+                   help="an existing Ray cluster (default: start a local instance); its nodes need this package "
+                        "installed and --runs-dir/--results-dir on a shared file system")
+    p.add_argument("--ray-cpus-per-cell", type=float, default=1.0, help="CPUs each cell's task asks Ray for (default 1)")
+    p.add_argument("--ray-gpus-per-cell", type=float, default=0.0, help="GPUs each cell's task asks Ray for (default 0)")
+    p.add_argument("--ray-retries", type=int, default=3,
+                   help="times Ray restarts a cell whose worker died (it resumes from its last checkpoint; default 3)")
     return p
 
 
@@ -159,6 +180,10 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
         argv.append("--quiet")
     if args.tensorboard:
         argv.append("--tensorboard")
+    if args.checkpoint_every:
+        argv.append(f"--checkpoint-every={args.checkpoint_every}")
+    if args.checkpoint_minutes != 5.0:
+        argv.append(f"--checkpoint-minutes={args.checkpoint_minutes:g}")
     if state in ("resume", "extend"):
         argv += ["--resume", out]
     else:
@@ -199,70 +224,92 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
         "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 2), "calls": calls})
 
 
-def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
-    """Runs the grid cell by cell; returns (exit status, {cell: what happened})."""
+def plan_cell(args: argparse.Namespace, task: str, method: str) -> dict:
+    """What the grid does with a cell now: {"state": done|new|restart|resume|extend, "out", "archived",
+    "argv" (None when done), "message"} (the state on disk decides, so a retried cell resumes)."""
+    out = cell_dir(args.runs_dir, args.preset, task, method)
+    state = cell_state(out)
+    archived = os.path.join(archive_dir_for(args.results_dir, args.preset), task, method)
+    if state == "new" and os.path.exists(os.path.join(archived, "summary.json")):
+        out, state = archived, "done"  # finished in an earlier clone; its run folder is not committed
+    wanted = wanted_budget(args, task)
+    s = {}
+    if state == "done":
+        with open(os.path.join(out, "summary.json")) as f:
+            s = json.load(f)
+        stored_every = wanted_every = None
+        from metapg_jax.checkpoint import saved_steps
+
+        if s["env_steps"] < wanted and out != archived and saved_steps(os.path.join(out, "checkpoints")):
+            stored_every = read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
+            wanted_every = requested_config(args, task, method).run.eval_every
+            if stored_every == wanted_every:
+                state = "extend"  # a finished shorter run: continue it to the requested budget
+    if state == "done":
+        if s["env_steps"] == wanted:
+            note = ""
+        elif s["env_steps"] < wanted and stored_every != wanted_every:
+            # An extension keeps its evaluation interval; the cell would not be evaluated where the
+            # requested budget's cells are (Table 2's final window, steps-to-threshold).
+            note = (f" (stored budget {s['env_steps']:,} is below the requested {wanted:,}, but its evaluation "
+                    f"interval {stored_every:,} is not the {wanted_every:,} of a run at that budget, so it is "
+                    f"not extended; delete it to rerun)")
+        elif s["env_steps"] < wanted:
+            # An archived copy (its run folder is not in this clone) or an empty checkpoints/.
+            note = (f" (stored budget {s['env_steps']:,} is below the requested {wanted:,}, and no checkpoint "
+                    f"to extend it from is stored; delete it to rerun)")
+        else:
+            note = f" (stored budget {s['env_steps']:,} is above the requested {wanted:,}; delete it to rerun)"
+        message = (f"done, skipped: final eval return {s['final_eval_return_mean']:.1f} ± "
+                   f"{s['final_eval_return_std']:.1f} over {s['num_seeds']} seeds, {s['env_steps']:,} steps{note}")
+        return {"state": state, "out": out, "archived": archived, "argv": None, "message": message}
+    argv = cell_argv(args, task, method, out, state)
+    verb = f"extending from {s['env_steps']:,} to {wanted:,} steps" if state == "extend" else \
+        {"resume": "resuming", "restart": "restarting (no checkpoint stored)", "new": "running"}[state]
+    return {"state": state, "out": out, "archived": archived, "argv": argv,
+            "message": f"{verb}: python -m experiments.run {' '.join(argv)}"}
+
+
+def run_cell(args: argparse.Namespace, task: str, method: str, plan: dict) -> int:
+    """Runs a planned cell (``experiments.run.main``), records it in ``reproduce.json`` and archives it when
+    it finished; returns the run's exit status. Called in this process, or in a Ray worker."""
     from experiments import run as run_lib
     from metapg_jax import reporting
 
+    out, argv = plan["out"], plan["argv"]
+    started, t0 = reporting.provenance(), time.perf_counter()
+    try:
+        code = run_lib.main(argv)
+    except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed (e.g. while compiling)
+        code = 130
+    if os.path.isdir(out):
+        _write_cell_record(out, argv, code, time.perf_counter() - t0, started)
+        archive_cell(out, plan["archived"], method, baseline_for(args.preset, args.student))
+    return code
+
+
+def outcome(plan: dict, code: int) -> str:
+    return {0: {"resume": "resumed", "extend": "extended"}.get(plan["state"], "ran")}.get(code, f"exit {code}")
+
+
+def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
+    """Runs the grid cell by cell; returns (exit status, {cell: what happened})."""
     status, report = 0, {}
     cells = [(t, m) for t in tasks for m in methods]
     for i, (task, method) in enumerate(cells, 1):
-        out = cell_dir(args.runs_dir, args.preset, task, method)
-        state = cell_state(out)
         tag = f"[{i}/{len(cells)}] {args.preset}/{task}/{method}"
-        archived = os.path.join(archive_dir_for(args.results_dir, args.preset), task, method)
-        if state == "new" and os.path.exists(os.path.join(archived, "summary.json")):
-            out, state = archived, "done"  # finished in an earlier clone; its run folder is not committed
-        wanted = wanted_budget(args, task)
-        if state == "done":
-            with open(os.path.join(out, "summary.json")) as f:
-                s = json.load(f)
-            stored_every = wanted_every = None
-            from metapg_jax.checkpoint import saved_steps
-
-            if s["env_steps"] < wanted and out != archived and saved_steps(os.path.join(out, "checkpoints")):
-                stored_every = read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
-                wanted_every = requested_config(args, task, method).run.eval_every
-                if stored_every == wanted_every:
-                    state = "extend"  # a finished shorter run: continue it to the requested budget
-        if state == "done":
-            if s["env_steps"] == wanted:
-                note = ""
-            elif s["env_steps"] < wanted and stored_every != wanted_every:
-                # An extension keeps its evaluation interval; the cell would not be evaluated where the
-                # requested budget's cells are (Table 2's final window, steps-to-threshold).
-                note = (f" (stored budget {s['env_steps']:,} is below the requested {wanted:,}, but its evaluation "
-                        f"interval {stored_every:,} is not the {wanted_every:,} of a run at that budget, so it is "
-                        f"not extended; delete it to rerun)")
-            elif s["env_steps"] < wanted:
-                # An archived copy (its run folder is not in this clone) or an empty checkpoints/.
-                note = (f" (stored budget {s['env_steps']:,} is below the requested {wanted:,}, and no checkpoint "
-                        f"to extend it from is stored; delete it to rerun)")
-            else:
-                note = f" (stored budget {s['env_steps']:,} is above the requested {wanted:,}; delete it to rerun)"
-            print(f"{tag}: done, skipped: final eval return {s['final_eval_return_mean']:.1f} ± "
-                  f"{s['final_eval_return_std']:.1f} over {s['num_seeds']} seeds, {s['env_steps']:,} steps{note}",
-                  flush=True)
+        plan = plan_cell(args, task, method)
+        print(f"{tag}: {plan['message']}", flush=True)
+        if plan["argv"] is None:
             report[(task, method)] = "skipped"
             continue
-        argv = cell_argv(args, task, method, out, state)
-        verb = f"extending from {s['env_steps']:,} to {wanted:,} steps" if state == "extend" else \
-            {"resume": "resuming", "restart": "restarting (no checkpoint stored)", "new": "running"}[state]
-        print(f"{tag}: {verb}: python -m experiments.run {' '.join(argv)}", flush=True)
         if args.dry_run:
-            report[(task, method)] = f"would {state}"
+            report[(task, method)] = f"would {plan['state']}"
             continue
-        started, t0 = reporting.provenance(), time.perf_counter()
-        try:
-            code = run_lib.main(argv)
-        except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed (e.g. while compiling)
-            code = 130
-        if os.path.isdir(out):
-            _write_cell_record(out, argv, code, time.perf_counter() - t0, started)
-            if archive_cell(out, archived, method, baseline_for(args.preset, args.student)):
-                print(f"{tag}: finished; results archived in {archived}", flush=True)
-        report[(task, method)] = {0: {"resume": "resumed", "extend": "extended"}.get(state, "ran")}.get(
-            code, f"exit {code}")
+        code = run_cell(args, task, method, plan)
+        if code == 0 and os.path.exists(os.path.join(plan["archived"], "summary.json")):
+            print(f"{tag}: finished; results archived in {plan['archived']}", flush=True)
+        report[(task, method)] = outcome(plan, code)
         if code == 130:
             print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
             return 130, report
@@ -272,6 +319,75 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         if code:
             print(f"{tag}: stopped with exit {code}; continuing with the next cell", file=sys.stderr, flush=True)
             status = status or code
+    return status, report
+
+
+def _ray_cell(args: argparse.Namespace, task: str, method: str, cwd: str) -> tuple[dict, int]:
+    """A cell as a Ray task: planned again from what is on disk (a task retried after its worker died
+    resumes from the cell's last checkpoint), then ``run_cell``."""
+    os.chdir(cwd)  # the grid's folders are relative to the driver's working directory
+    plan = plan_cell(args, task, method)
+    if plan["argv"] is None:
+        return plan, 0
+    return plan, run_cell(args, task, method, plan)
+
+
+def run_grid_ray(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
+    """Every cell that has work left as a Ray task with its CPU and GPU needs declared; returns
+    (exit status, {cell: what happened}) like ``run_grid``."""
+    import ray
+
+    status, report = 0, {}
+    cells = [(t, m) for t in tasks for m in methods]
+    tags = {c: f"[{i}/{len(cells)}] {args.preset}/{c[0]}/{c[1]}" for i, c in enumerate(cells, 1)}
+    pending = []
+    for cell in cells:
+        plan = plan_cell(args, *cell)
+        print(f"{tags[cell]}: {plan['message'] if plan['argv'] is None else 'submitted to Ray: ' + plan['message']}",
+              flush=True)
+        if plan["argv"] is None:
+            report[cell] = "skipped"
+        else:
+            pending.append(cell)
+    if not pending:
+        return 0, report
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    started_here = args.ray_address is None
+    ray.init(address=args.ray_address, include_dashboard=False, log_to_driver=True,
+             runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH"))
+                                                                      if p)}})
+    try:
+        remote = ray.remote(max_retries=args.ray_retries)(_ray_cell).options(
+            num_cpus=args.ray_cpus_per_cell, num_gpus=args.ray_gpus_per_cell)
+        refs = {remote.remote(args, task, method, os.getcwd()): (task, method) for task, method in pending}
+        print(f"ray: {len(refs)} cell(s) on {'a local instance' if started_here else args.ray_address} "
+              f"({ray.cluster_resources().get('CPU', 0):g} CPUs, {ray.cluster_resources().get('GPU', 0):g} GPUs; "
+              f"{args.ray_cpus_per_cell:g} CPU and {args.ray_gpus_per_cell:g} GPU per cell)", flush=True)
+        waiting = list(refs)
+        try:
+            while waiting:
+                done, waiting = ray.wait(waiting, num_returns=1)
+                cell = refs[done[0]]
+                try:
+                    plan, code = ray.get(done[0])
+                except Exception as err:  # noqa: BLE001 - the task failed past its retries: report, go on
+                    print(f"{tags[cell]}: failed on Ray: {type(err).__name__}: {str(err).splitlines()[0][:300]}",
+                          file=sys.stderr, flush=True)
+                    report[cell], status = "failed", status or 1
+                    continue
+                report[cell] = outcome(plan, code)
+                if code == 0:
+                    print(f"{tags[cell]}: finished; results archived in {plan['archived']}", flush=True)
+                else:
+                    print(f"{tags[cell]}: stopped with exit {code}", file=sys.stderr, flush=True)
+                    status = status or code
+        except KeyboardInterrupt:  # the tasks get Ctrl-C too: each checkpoints its chunk in flight and stops
+            for ref in waiting:
+                ray.cancel(ref)
+            print("interrupted; run the same command again to resume", file=sys.stderr, flush=True)
+            return 130, report
+    finally:
+        ray.shutdown()
     return status, report
 
 
@@ -296,6 +412,13 @@ def main(argv: list[str] | None = None) -> int:
         for item in args.overrides:
             if "=" not in item:
                 raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
+        if args.launcher == "ray" and not args.artefacts_only and not args.dry_run:
+            try:
+                import ray  # noqa: F401
+            except ImportError:
+                raise ValueError("--launcher ray needs Ray: pip install -e \".[ray]\"") from None
+        if args.ray_cpus_per_cell < 0 or args.ray_gpus_per_cell < 0 or args.ray_retries < 0:
+            raise ValueError("--ray-cpus-per-cell, --ray-gpus-per-cell and --ray-retries must be >= 0")
         if args.tensorboard and not args.artefacts_only:
             from metapg_jax import reporting
 
@@ -317,7 +440,8 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     status, report = 0, {}
     if not args.artefacts_only:
-        status, report = run_grid(args, tasks, methods)
+        launch = run_grid_ray if args.launcher == "ray" and not args.dry_run else run_grid
+        status, report = launch(args, tasks, methods)
         counts = {}
         for v in report.values():
             counts[v] = counts.get(v, 0) + 1
