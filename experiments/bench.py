@@ -5,6 +5,7 @@
     python -m experiments.bench --quick               # pendulum only, 1 and 8 seeds
     python -m experiments.bench --envs hopper,halfcheetah --physics mjx,mujoco --presets paper --seeds 8
     python -m experiments.bench --env-speed           # env stepping alone: MJX, the C engine, its limits
+    python -m experiments.bench --sweep               # a 32-setting sweep as one program vs 32 separate runs
 
 For every (task, method, preset, seeds) it runs a fresh subprocess (so peak
 memory and compile caches are its own) that measures, in one process:
@@ -396,6 +397,78 @@ def env_speed_markdown(results: list[dict], meta: dict) -> str:
     return "\n".join(lines)
 
 
+SWEEP_GRID = {"meta.lr": [3e-5, 1e-4, 3e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1], "meta.init_log_std": [-1.5, -1.0, -0.5, 0.0]}
+
+
+def measure_sweep(task: str = "pendulum", seeds: int = 1, repeats: int = 3, chunk_steps: int = 3000) -> dict:
+    """A 32-setting sweep (``SWEEP_GRID``: 8 teacher learning rates x 4 initial log-stds, Meta, paper preset)
+    as one program (``metapg_jax.sweep``) against the 32 separate runs it replaces, in this process:
+    cold compile of each program (separately), and the median time of one evaluation chunk of
+    ``chunk_steps`` env steps per seed after a warm call."""
+    import itertools
+
+    import jax
+    import jax.numpy as jnp
+
+    import envs
+    from metapg_jax.config import make_config, override
+    from metapg_jax.loop import seed_keys, vmap_seeds
+    from metapg_jax.sweep import Sweep
+    from metapg_jax.train import make_train
+
+    cfg = make_config(task, "meta", steps=3 * chunk_steps, overrides={"run.eval_every": chunk_steps})
+    settings = [override(cfg, dict(zip(SWEEP_GRID, v))) for v in itertools.product(*SWEEP_GRID.values())]
+    env = envs.make(cfg.env.name, source=cfg.env.source, episode_length=cfg.episode_length, physics=cfg.env.physics)
+    sweep = Sweep(cfg, env, tuple(SWEEP_GRID))
+    values = jnp.repeat(sweep.values(settings), seeds, axis=0)
+    keys = jnp.concatenate([seed_keys(0, seeds)] * len(settings))
+
+    def time_program(init, chunk, args):
+        state = jax.jit(init)(*args)
+        t = time.perf_counter()
+        compiled = jax.jit(chunk).lower(state, *args[1:]).compile()
+        compile_s = time.perf_counter() - t
+        run_chunk = lambda st: compiled(st, *args[1:])
+        median, times = _timed(run_chunk, (state,), repeats)
+        return compile_s, median, times
+
+    sweep_compile, sweep_chunk, sweep_times = time_program(vmap_seeds(sweep.init), vmap_seeds(sweep.train_chunk),
+                                                           (keys, values))
+    trainer = make_train(settings[-1], env)
+    one_compile, one_chunk, one_times = time_program(lambda k: vmap_seeds(trainer.init)(k),
+                                                     lambda st: vmap_seeds(trainer.train_chunk)(st),
+                                                     (seed_keys(0, seeds),))
+    n = len(settings)
+    return {"date": time.strftime("%Y-%m-%d"), "task": task, "method": "meta", "preset": "paper",
+            "settings": n, "seeds_per_setting": seeds, "chunk_env_steps_per_seed": chunk_steps,
+            "grid": SWEEP_GRID, "sweep_compile_s": round(sweep_compile, 2), "run_compile_s": round(one_compile, 2),
+            "sweep_chunk_s": sweep_chunk, "run_chunk_s": one_chunk, "sweep_chunk_times": sweep_times,
+            "run_chunk_times": one_times,
+            "sweep_steps_per_s": n * seeds * chunk_steps / sweep_chunk,
+            "separate_steps_per_s": seeds * chunk_steps / one_chunk,
+            # steady state: the 32 runs one after another vs the sweep; end to end: each separate run compiles
+            "steady_ratio": n * one_chunk / sweep_chunk,
+            "one_run_of_each_chunk_ratio": (n * (one_compile + one_chunk)) / (sweep_compile + sweep_chunk)}
+
+
+def sweep_markdown(r: dict, meta: dict) -> str:
+    return "\n".join([
+        f"## A sweep as one program vs separate runs ({r['date']}, {meta['machine']}, JAX {meta['jax']}, "
+        f"{meta['backend']})", "",
+        f"`python -m experiments.bench --sweep`: {r['settings']} settings (Meta on {r['task']}, paper preset; "
+        f"{', '.join(f'`{k}`' for k in r['grid'])}: {' x '.join(str(len(v)) for v in r['grid'].values())}) x "
+        f"{r['seeds_per_setting']} seed(s), one evaluation chunk of {r['chunk_env_steps_per_seed']:,} env steps per "
+        f"seed, median of {meta['repeats']} after a warm call; cold compiles. Raw numbers: `{meta['json']}`.", "",
+        "| | compile (s) | one chunk (s) | env steps/s total |", "|---|---|---|---|",
+        f"| sweep: {r['settings']} settings in one program | {r['sweep_compile_s']:.1f} | {r['sweep_chunk_s']:.2f} | "
+        f"{r['sweep_steps_per_s']:,.0f} |",
+        f"| one separate run (of {r['settings']}) | {r['run_compile_s']:.1f} | {r['run_chunk_s']:.2f} | "
+        f"{r['separate_steps_per_s']:,.0f} |", "",
+        f"Steady state, the sweep does the work of the {r['settings']} separate runs {r['steady_ratio']:.1f}x faster "
+        f"({r['settings']} x one run's chunk / the sweep's chunk); with one chunk each and every separate run "
+        f"compiling afresh, {r['one_run_of_each_chunk_ratio']:.1f}x."])
+
+
 def write_section(path: str, name: str, text: str) -> None:
     """Replaces the generated section ``name`` of ``path`` (between marker comments), keeping
     everything else in the file (the hand-written analysis); appends it if it is not there."""
@@ -539,6 +612,9 @@ def main(argv: list[str] | None = None) -> int:
                    help="vmap the seeds without naming the axis: every episode-start branch runs at every step "
                         "(the 'before' rows of that change, kept next to the default rows)")
     p.add_argument("--append", action="store_true", help="add rows to an existing --json (e.g. another grid)")
+    p.add_argument("--sweep", action="store_true",
+                   help="a 32-setting sweep as one program vs 32 separate runs (the first --envs task, default "
+                        "pendulum; the first --seeds value per setting, default 1)")
     p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
     args = p.parse_args(argv)
     if args.one:
@@ -587,6 +663,15 @@ def main(argv: list[str] | None = None) -> int:
     meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
             "repeats": args.repeats, "json": json_path}
+    if args.sweep:
+        json_path = args.json or os.path.join(BENCH_DIR, "benchmarks_sweep.json")
+        meta["json"] = json_path
+        r = measure_sweep(tasks[0] if args.envs else "pendulum", seeds=int(seeds[0]) if args.seeds != "1,8,32" else 1,
+                          repeats=args.repeats)
+        reporting.write_json_atomic(json_path, {"meta": meta, "sweep": r})
+        write_section(args.out, "sweep", sweep_markdown(r, meta))
+        print(sweep_markdown(r, meta).splitlines()[-1], flush=True)
+        return 0
     if args.env_speed:
         results = []
         for task in tasks:
