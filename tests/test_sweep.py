@@ -36,8 +36,7 @@ def test_a_sweep_equals_separate_runs_of_its_settings(tmp_path):
     rows = _rows(out)
     assert sorted((r["setting"], r["seed"], r["chunk"]) for r in rows) == [
         (k, s, c) for k in range(4) for s in range(2) for c in range(2)]
-    finals = {}
-    for k in (0, 3):  # (1e-4, 0.01) and (1e-2, 0.5): the corners
+    for k in (3,):  # (1e-2, 0.5): the corner furthest from the defaults
         values = stored["settings"][k]["values"]
         single = str(tmp_path / f"run{k}")
         argv = [a for a in TINY if a != "--quiet"] + ["--quiet", "--no-plot", "--out", single]
@@ -48,8 +47,9 @@ def test_a_sweep_equals_separate_runs_of_its_settings(tmp_path):
         theirs = sorted((r["seed"], r["chunk"], r["eval_return"], r["critic_loss"]) for r in _rows(single))
         assert [m[:2] for m in mine] == [t[:2] for t in theirs]
         np.testing.assert_allclose([m[2:] for m in mine], [t[2:] for t in theirs], rtol=1e-4, atol=1e-3)
-        finals[k] = np.array([m[3] for m in mine])
-    assert np.abs(finals[0] - finals[3]).max() > 1e-2  # the settings do differ
+    losses = {k: np.array(sorted((r["seed"], r["chunk"], r["critic_loss"]) for r in rows if r["setting"] == k))[:, 2]
+              for k in (0, 3)}
+    assert np.abs(losses[0] - losses[3]).max() > 1e-2  # ... and the settings do differ
     summary = json.load(open(os.path.join(out, "summary.json")))["settings"]
     assert sum(bool(e.get("best")) for e in summary) == 1 and all(e["seeds"] == 2 and e["complete"] for e in summary)
     best = max(summary, key=lambda e: e["mean"])
