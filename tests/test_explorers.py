@@ -31,8 +31,9 @@ class UniformExplorer:
                                                       trainer.config.run.rollout_steps)
         state = trainer.store(state.replace(env_state=env_state, key=key), transitions)
         state, metrics = trainer.student_updates(state, k_train, trainer.config.run.train_steps)
-        state = state.replace(explorer={"steps": state.explorer["steps"] + transitions.reward.shape[0]})
-        return state, {**metrics, "train_return": completed_episode_mean(stats)[0]}
+        steps = state.explorer["steps"] + transitions.reward.shape[0]
+        return state.replace(explorer={"steps": steps}), {
+            **metrics, "train_return": completed_episode_mean(stats)[0], "uniform_steps": steps}
 
 
 def test_a_registered_explorer_trains_without_touching_the_loop(monkeypatch):

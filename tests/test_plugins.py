@@ -14,7 +14,8 @@ from metapg_jax import config as config_lib
 from metapg_jax import explorers, students
 
 PLUGIN = textwrap.dedent('''
-    """A user's file: uniformly random exploration, and a DDPG that counts its own updates."""
+    """A user's file: uniformly random exploration (the explorer of tests/test_explorers.py), and a DDPG that
+    counts its own updates."""
     import dataclasses
 
     import jax
@@ -23,23 +24,7 @@ PLUGIN = textwrap.dedent('''
 
     from metapg_jax import explorers, students
     from metapg_jax.ddpg import DDPG
-    from metapg_jax.rollout import completed_episode_mean, rollout
-
-
-    class UniformExplorer:
-        def init(self, trainer, student, key):
-            return {"steps": jnp.zeros((), jnp.int32)}
-
-        def cycle(self, trainer, state):
-            key, k_roll, k_train = jax.random.split(state.key, 3)
-            policy = lambda carry, obs, first, k: (trainer.random_action(k), carry, None)
-            env_state, _, transitions, stats, _ = rollout(trainer.env, policy, state.env_state, None, k_roll,
-                                                          trainer.config.run.rollout_steps)
-            state = trainer.store(state.replace(env_state=env_state, key=key), transitions)
-            state, metrics = trainer.student_updates(state, k_train, trainer.config.run.train_steps)
-            steps = state.explorer["steps"] + transitions.reward.shape[0]
-            return state.replace(explorer={"steps": steps}), {
-                **metrics, "train_return": completed_episode_mean(stats)[0], "uniform_steps": steps}
+    from tests.test_explorers import UniformExplorer
 
 
     @struct.dataclass
