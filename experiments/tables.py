@@ -230,9 +230,10 @@ def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset
     md = [f"# Samples to reach the {STUDENT_NAMES.get(student, student)} baseline's best ({grid_label(preset, student)})", "",
           f"Threshold: the best value over evaluations of the {baseline} seed-mean evaluation-return curve. "
           "`step`: the first evaluation's env step at which a method's seed-mean curve reaches it; "
-          "`ratio` = step / DDPG's own step (the paper: Meta needs about 1/6 of DDPG's samples on "
-          "InvertedDoublePendulum). \"not reached\": never within the env steps run.", "",
-          "| task | method | threshold | step | DDPG step | ratio | env steps run | seeds |",
+          f"`ratio` = step / {STUDENT_NAMES.get(student, student)}'s own step (the paper: Meta needs about 1/6 of "
+          "DDPG's samples on InvertedDoublePendulum). \"not reached\": never within the env steps run.", "",
+          f"| task | method | threshold | step | {STUDENT_NAMES.get(student, student)} step | ratio | env steps run "
+          "| seeds |",
           "|---|---|---|---|---|---|---|---|"]
     for row in rows:
         step = "not reached" if row["step"] is None else f"{row['step']:,}"
