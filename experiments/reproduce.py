@@ -161,10 +161,13 @@ def wanted_budget(args: argparse.Namespace, task: str) -> int:
     return default_budget(task) if args.steps is None else args.steps
 
 
-def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state: str) -> list[str]:
+def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state: str,
+              options: list[str] | None = None) -> list[str]:
     """The explicit ``experiments.run`` options of a cell (the same for a fresh start and a resume; an
-    extension names the new budget)."""
-    argv = [f"--env={task}", *METHODS[method], f"--preset={args.preset}", f"--seeds={args.seeds}",
+    extension names the new budget). ``options`` replaces the grid method's ``METHODS[method]`` (a grid of
+    other variants, e.g. ``experiments.screen``'s)."""
+    options = METHODS[method] if options is None else options
+    argv = [f"--env={task}", *options, f"--preset={args.preset}", f"--seeds={args.seeds}",
             f"--seed={args.seed}", f"--source={args.source}"]
     if args.physics != "mjx" and task != "pendulum":
         argv.append(f"--physics={args.physics}")
@@ -191,11 +194,11 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
     return argv
 
 
-def requested_config(args: argparse.Namespace, task: str, method: str):
+def requested_config(args: argparse.Namespace, task: str, method: str, options: list[str] | None = None):
     """The config a fresh run of this cell at the requested budget gets (validated)."""
     from experiments import run as run_lib
 
-    parsed = run_lib.build_parser().parse_args(cell_argv(args, task, method, os.devnull, "new"))
+    parsed = run_lib.build_parser().parse_args(cell_argv(args, task, method, os.devnull, "new", options))
     return run_lib.config_from_run_args(run_lib.run_args(parsed))
 
 
@@ -224,9 +227,10 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
         "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 2), "calls": calls})
 
 
-def plan_cell(args: argparse.Namespace, task: str, method: str) -> dict:
+def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[str] | None = None) -> dict:
     """What the grid does with a cell now: {"state": done|new|restart|resume|extend, "out", "archived",
-    "argv" (None when done), "message"} (the state on disk decides, so a retried cell resumes)."""
+    "argv" (None when done), "message"} (the state on disk decides, so a retried cell resumes).
+    ``options``: the cell's run options instead of ``METHODS[method]`` (``cell_argv``)."""
     out = cell_dir(args.runs_dir, args.preset, task, method)
     state = cell_state(out)
     archived = os.path.join(archive_dir_for(args.results_dir, args.preset), task, method)
@@ -242,7 +246,7 @@ def plan_cell(args: argparse.Namespace, task: str, method: str) -> dict:
 
         if s["env_steps"] < wanted and out != archived and saved_steps(os.path.join(out, "checkpoints")):
             stored_every = read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
-            wanted_every = requested_config(args, task, method).run.eval_every
+            wanted_every = requested_config(args, task, method, options).run.eval_every
             if stored_every == wanted_every:
                 state = "extend"  # a finished shorter run: continue it to the requested budget
     if state == "done":
@@ -263,7 +267,7 @@ def plan_cell(args: argparse.Namespace, task: str, method: str) -> dict:
         message = (f"done, skipped: final eval return {s['final_eval_return_mean']:.1f} ± "
                    f"{s['final_eval_return_std']:.1f} over {s['num_seeds']} seeds, {s['env_steps']:,} steps{note}")
         return {"state": state, "out": out, "archived": archived, "argv": None, "message": message}
-    argv = cell_argv(args, task, method, out, state)
+    argv = cell_argv(args, task, method, out, state, options)
     verb = f"extending from {s['env_steps']:,} to {wanted:,} steps" if state == "extend" else \
         {"resume": "resuming", "restart": "restarting (no checkpoint stored)", "new": "running"}[state]
     return {"state": state, "out": out, "archived": archived, "argv": argv,

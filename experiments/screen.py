@@ -1,0 +1,322 @@
+"""A screen of teacher variants: Algorithm 1's knobs changed one at a time from the paper preset, next to
+the paper's teacher and both DDPG noise baselines, at a reduced budget, on the tasks where the paper's
+teacher loses (Hopper and HalfCheetah).
+
+    python -m experiments.screen                                   # Hopper then HalfCheetah, 300k, 8 seeds
+    python -m experiments.screen --tasks hopper --variants paper-teacher,normalised-reward
+    python -m experiments.screen --report-only                     # rebuild results/screen/ from what is stored
+
+Every cell is an ``experiments.reproduce`` cell (same planning, resume, ``reproduce.json`` provenance and
+archive; ``plan_cell`` with the variant's run options): ``<runs-dir>/paper/<task>/<variant>``, archived to
+``<results-dir>/cells/<task>/<variant>``. Run the same command again to resume. The report
+(``<results-dir>/README.md``, and per task ``<results-dir>/<task>/`` from ``experiments.ablation``: table,
+``per_seed.csv``, ``curves.png``) compares each finished variant with the paper's teacher and with the
+better of the two noise baselines at this budget; cells not finished are listed as not run.
+
+``VARIANTS`` holds each variant's change and the hypothesis behind it, written before it was run.
+A variant whose change is already the task's paper preset (one teacher step per cycle on Hopper) is
+skipped on that task.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import sys
+from typing import Callable
+
+from experiments import ablation, cells, stats
+from experiments.grid import METHODS, TASK_NAMES
+
+CONTROL = "paper-teacher"
+BASELINES = ("ddpg-paramnoise", "ddpg-normal")
+DEFAULT_TASKS = ("hopper", "halfcheetah")
+DEFAULT_STEPS = 300_000
+LOG_STD_FLOOR = -2.3  # sigma >= 0.1 in normalised action units (TD3's exploration noise)
+
+
+@dataclasses.dataclass(frozen=True)
+class Variant:
+    label: str
+    change: str  # in words
+    hypothesis: str
+    sets: Callable  # (paper-preset Meta config of the task) -> list of "group.field=value", None = no-op here
+    method: tuple[str, ...] = ("--method=meta", "--teacher=independent")
+
+
+def _ddpg_ratio(cfg) -> list[str] | None:
+    """DDPG's updates per stored step (50 per 100) for the student; the look-ahead keeps its updates."""
+    train = cfg.steps_per_cycle // 2
+    if train == cfg.run.train_steps:
+        return None
+    return [f"run.train_steps={train}", f"meta.lookahead_steps={cfg.meta.lookahead_steps or cfg.run.train_steps}"]
+
+
+VARIANTS: dict[str, Variant] = {
+    CONTROL: Variant(
+        "paper teacher", "the paper preset (control)",
+        "Control: Algorithm 1 with the paper preset's schedule.", lambda cfg: []),
+    "ddpg-paramnoise": Variant(
+        "DDPG (param noise)", "no teacher: adaptive parameter noise 0.2 (the paper's baseline)",
+        "Baseline.", lambda cfg: [], tuple(METHODS["ddpg-paramnoise"])),
+    "ddpg-normal": Variant(
+        "DDPG (normal noise)", "no teacher: Gaussian action noise 0.2",
+        "Baseline.", lambda cfg: [], tuple(METHODS["ddpg-normal"])),
+    "one-teacher-step": Variant(
+        "1 teacher step per cycle", "`meta.teacher_steps=1` (HalfCheetah's preset: 100)",
+        "100 Adam steps on one scalar meta reward per cycle overfit the teacher to that sample's noise and "
+        "drive its log-std to the floor, so exploration collapses; one step keeps it exploring (the MJX "
+        "ablation at 300k: 1,533 -> 2,810 on HalfCheetah).",
+        lambda cfg: None if cfg.meta.teacher_steps == 1 else ["meta.teacher_steps=1"]),
+    "normalised-reward": Variant(
+        "normalised meta reward", "`meta.normalize_meta_reward=true`",
+        "The meta reward has no baseline and its scale grows with the returns; a running mean/std removes the "
+        "bias (a baseline for REINFORCE) and keeps the step size constant over training.",
+        lambda cfg: ["meta.normalize_meta_reward=true"]),
+    "ddpg-update-ratio": Variant(
+        "DDPG's update ratio", "`run.train_steps` = half the cycle's stored steps (DDPG's 50 per 100), "
+                               "look-ahead updates unchanged",
+        "The paper schedule gives the Meta student a third of DDPG's updates per stored step (50 per 300 on "
+        "Hopper, 500 per 3,000 on HalfCheetah); part of Meta's gap is an under-trained student, not worse data.",
+        _ddpg_ratio),
+    "student-from-lookahead": Variant(
+        "student from pi'", "`meta.student_from=lookahead`",
+        "The look-ahead's updates on D0 are thrown away each cycle; starting the student's update from pi' "
+        "keeps them (more updates per sample, on the freshest data) at no extra samples.",
+        lambda cfg: ["meta.student_from=lookahead"]),
+    "log-std-floor": Variant(
+        "log-std floor -2.3", f"`meta.min_log_std={LOG_STD_FLOOR}` (preset -5: sigma >= 0.1 instead of 0.007)",
+        "The teacher's log-std drifts to its floor (sigma 0.007), leaving D0 nearly deterministic; a floor at "
+        "TD3's noise level keeps a minimum of exploration that the mean network can still steer.",
+        lambda cfg: [f"meta.min_log_std={LOG_STD_FLOOR}"]),
+    "fresh-baseline": Variant(
+        "fresh R_hat(pi)", "`meta.baseline=fresh` (a D2 rollout of the updated student, stored and counted)",
+        "With the preset's baseline the meta reward is R(pi'_t) - R(pi'_(t-1)): mostly the student's own progress "
+        "between cycles, not D0's effect; R(pi'_t) - R(pi_t) from a fresh rollout is the improvement that D0 "
+        "caused, a less confounded signal (at 2/3 the D0 samples per stored step on Hopper).",
+        lambda cfg: ["meta.baseline=fresh"]),
+    "two-d1-envs": Variant(
+        "2 D1 envs", "`meta.eval_envs=2` (R_hat the mean over two fresh-reset rollouts; D1 stored and counted)",
+        "R_hat from one rollout is a noisy estimate; the mean of two cuts the meta reward's variance, at the "
+        "price of fewer D0 samples and student updates per stored step.",
+        lambda cfg: ["meta.eval_envs=2"]),
+}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m experiments.screen", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--tasks", default=",".join(DEFAULT_TASKS), help="comma-separated tasks (default hopper,halfcheetah)")
+    p.add_argument("--variants", default=",".join(VARIANTS),
+                   help="comma-separated variants, run in this order (default all): " + ", ".join(VARIANTS))
+    p.add_argument("--steps", type=int, default=DEFAULT_STEPS, help=f"env steps per seed (default {DEFAULT_STEPS:,})")
+    p.add_argument("--seeds", type=int, default=8, help="seeds per cell (default 8)")
+    p.add_argument("--seed", type=int, default=0, help="base PRNG seed of every cell (default 0)")
+    p.add_argument("--physics", default="mujoco", choices=("mjx", "mujoco"),
+                   help="engine of the MuJoCo tasks (default mujoco, MuJoCo's C engine)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
+                   help="an override added to every cell (e.g. tiny test settings)")
+    p.add_argument("--runs-dir", default="runs/screen", help="cells' run folders (default runs/screen)")
+    p.add_argument("--results-dir", default="results/screen", help="archive and report (default results/screen)")
+    p.add_argument("--checkpoint-minutes", type=float, default=5.0, help="minutes between checkpoints (default 5)")
+    p.add_argument("--report-only", action="store_true", help="train nothing; rebuild the report from what is stored")
+    p.add_argument("--dry-run", action="store_true", help="print what would run; do nothing")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    return p
+
+
+def reproduce_args(a: argparse.Namespace) -> argparse.Namespace:
+    """The ``experiments.reproduce`` options every cell shares."""
+    from experiments import reproduce
+
+    argv = ["--preset=paper", f"--seeds={a.seeds}", f"--seed={a.seed}", f"--steps={a.steps}",
+            f"--physics={a.physics}", "--no-plot", f"--runs-dir={a.runs_dir}", f"--results-dir={a.results_dir}",
+            f"--checkpoint-minutes={a.checkpoint_minutes:g}"] + [f"--set={s}" for s in a.overrides]
+    return reproduce.build_parser().parse_args(argv + (["--quiet"] if a.quiet else []))
+
+
+def cell_options(task: str, name: str, physics: str) -> list[str] | None:
+    """The variant's ``experiments.run`` options on ``task``; None where its change is the preset already."""
+    from metapg_jax.config import make_config
+
+    v = VARIANTS[name]
+    sets = v.sets(make_config(task, "meta", physics=physics))
+    if sets is None:
+        return None
+    return [*v.method] + [x for s in sets for x in ("--set", s)]
+
+
+def parse_list(text: str, valid, what: str) -> list[str]:
+    from experiments.reproduce import parse_list as parse
+
+    return parse(text, valid, what)
+
+
+def plan(a: argparse.Namespace) -> list[tuple[str, str, list[str]]]:
+    """(task, variant, options) of every cell to run, configs validated before anything trains."""
+    from experiments import reproduce
+
+    tasks = parse_list(a.tasks, tuple(TASK_NAMES), "task")
+    names = parse_list(a.variants, tuple(VARIANTS), "variant")
+    if a.seeds <= 0 or a.steps <= 0:
+        raise ValueError("--seeds and --steps must be positive")
+    rargs = reproduce_args(a)
+    out = []
+    for task in tasks:
+        for name in names:
+            options = cell_options(task, name, a.physics)
+            if options is None:
+                continue
+            try:
+                reproduce.requested_config(rargs, task, name, options)
+            except ValueError as err:
+                raise ValueError(f"{task}/{name}: {err}") from None
+            out.append((task, name, options))
+    return out
+
+
+def run_cells(a: argparse.Namespace, todo: list[tuple[str, str, list[str]]]) -> int:
+    from experiments import reproduce
+
+    rargs = reproduce_args(a)
+    status = 0
+    for i, (task, name, options) in enumerate(todo, 1):
+        tag = f"[{i}/{len(todo)}] {task}/{name}"
+        p = reproduce.plan_cell(rargs, task, name, options)
+        print(f"{tag}: {p['message']}", flush=True)
+        if p["argv"] is None or a.dry_run:
+            continue
+        code = reproduce.run_cell(rargs, task, name, p)
+        if code == 130:
+            print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
+            return 130
+        if code:
+            print(f"{tag}: stopped with exit {code}; continuing", file=sys.stderr, flush=True)
+            status = status or code
+    return status
+
+
+# ------------------------------------------------------------------------------------------------ report
+
+def task_rows(results_dir: str, task: str, upto: int) -> tuple[list[dict], list[str]]:
+    """ablation.compare rows of the task's finished cells (control first) and the variants not finished."""
+    root = os.path.join(results_dir, "cells", task)
+    runs, missing = [], []
+    for name in VARIANTS:
+        path = os.path.join(root, name)
+        r = cells.load_run(path) if os.path.exists(os.path.join(path, "summary.json")) else None
+        if r is None or r.env_steps_done < upto:
+            missing.append(name)
+            continue
+        runs.append((name, r))
+    if not runs or runs[0][0] != CONTROL:
+        return [], [n for n in VARIANTS]
+    return ablation.compare(runs, upto), missing
+
+
+def best_baseline(rows: list[dict]) -> dict | None:
+    found = [r for r in rows if r["name"] in BASELINES]
+    return max(found, key=lambda r: r["mean"]) if found else None
+
+
+def verdict(r: dict, ref: dict) -> tuple[float, str]:
+    """Welch p of ``r`` vs ``ref`` and 'better'/'worse' at p < 0.05, else 'equal (n.s.)'."""
+    p = stats.welch_test(r["finals"], ref["finals"])[1]
+    if not math.isfinite(p) or p >= 0.05:
+        return p, "n.s."
+    return p, "better" if r["mean"] > ref["mean"] else "worse"
+
+
+def markdown(results_dir: str, tasks: list[str], upto: int, seeds: int, build: dict, physics: str = "mujoco") -> str:
+    lines = [f"# Screen of teacher variants ({', '.join(TASK_NAMES[t] for t in tasks)}, {upto:,} env steps, "
+             f"{seeds} seeds)", "",
+             "Algorithm 1's knobs changed one at a time from the paper preset (`python -m experiments.screen`, "
+             "MuJoCo's C engine, base seed 0), next to the paper's teacher and both DDPG noise baselines on the "
+             "same seeds and budget. Final return of a seed = mean of its last 10% (at least 1) evaluations; "
+             "mean ± std over seeds (ddof=1); 95% CI: Student t; p: two-sided Welch t-test; 'better'/'worse': "
+             "p < 0.05. The best noise baseline is the one of the two with the higher mean on that task. Per task: "
+             "`<task>/README.md` (what changed, from the stored configs; teacher log-std), `<task>/per_seed.csv`, "
+             "`<task>/curves.png`; cells: `cells/<task>/<variant>`.", "",
+             "## Variants and the hypotheses behind them", "",
+             "Written before the runs.", "", "| variant | change | hypothesis |", "|---|---|---|"]
+    for name, v in VARIANTS.items():
+        lines.append(f"| {v.label} | {v.change} | {v.hypothesis} |")
+    for task in tasks:
+        rows, missing = task_rows(results_dir, task, upto)
+        lines += ["", f"## {TASK_NAMES[task]}", ""]
+        if not rows:
+            lines.append(f"The paper teacher's cell is not finished: nothing is compared ({len(VARIANTS)} cells "
+                         "not run or not finished).")
+            continue
+        control, base = rows[0], best_baseline(rows)
+        lines += [f"| variant | final (mean ± std) | 95% CI | vs paper teacher (p) | vs {base['name'] if base else 'best noise baseline'} (p) "
+                  "| teacher log-std | seeds at floor |", "|---|---|---|---|---|---|---|"]
+        for r in rows:
+            vs_c = "–" if r["control"] else "{1} ({0})".format(stats.fmt_p(verdict(r, control)[0]), verdict(r, control)[1])
+            vs_b = "–" if base is None or r is base else "{1} ({0})".format(stats.fmt_p(verdict(r, base)[0]),
+                                                                           verdict(r, base)[1])
+            t = r["teacher"]
+            lines.append(f"| {VARIANTS[r['name']].label} | {stats.fmt(r['mean'])} ± {stats.fmt(r['std'])} | "
+                         f"± {stats.fmt(r['ci_half'])} | {vs_c} | {vs_b} | "
+                         f"{'–' if t is None else stats.fmt(t['mean'], 2)} | "
+                         f"{'–' if t is None else str(t['seeds_at_floor']) + ' of ' + str(len(t['per_seed']))} |")
+        skipped = [n for n in missing if cell_options(task, n, physics) is None]
+        pending = [n for n in missing if n not in skipped]
+        if skipped:
+            lines.append("")
+            lines.append("Not a change on this task (its preset already has it): "
+                         + ", ".join(VARIANTS[n].label for n in skipped) + ".")
+        if pending:
+            lines.append("")
+            lines.append("Not run (or not finished) yet: " + ", ".join(VARIANTS[n].label for n in pending) + ".")
+    lines += ["", "---", "", f"Built {build['built']} at commit `{build.get('commit') or 'unknown'}` on "
+              f"{build['machine']['platform']}. Each cell's commit, config, seeds, budget, machine and wall time: "
+              "`cells/<task>/<variant>/reproduce.json` and `config.json`; summary: `screen.json`."]
+    return "\n".join(lines) + "\n"
+
+
+def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, physics: str = "mujoco") -> list[str]:
+    from metapg_jax import reporting
+
+    files, summary = [], {"upto": upto, "seeds": seeds, "tasks": {}}
+    for task in tasks:
+        rows, missing = task_rows(results_dir, task, upto)
+        if rows:
+            files += ablation.write_report(rows, task, upto, os.path.join(results_dir, task))
+        summary["tasks"][task] = {
+            "finished": {r["name"]: {"finals": [float(x) for x in r["finals"]], "mean": r["mean"], "std": r["std"],
+                                     "ci_half": r["ci_half"], "commit": r["commit"],
+                                     "teacher_log_std": None if r["teacher"] is None else r["teacher"]["mean"]}
+                         for r in rows},
+            "not_finished": missing}
+    os.makedirs(results_dir, exist_ok=True)
+    md = os.path.join(results_dir, "README.md")
+    with open(md, "w") as f:
+        f.write(markdown(results_dir, tasks, upto, seeds, cells.build_info(results_dir), physics))
+    reporting.write_json_atomic(os.path.join(results_dir, "screen.json"), summary)
+    return [md, os.path.join(results_dir, "screen.json")] + files
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = build_parser().parse_args(argv)
+    try:
+        todo = plan(a)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    status = 0
+    if not a.report_only:
+        status = run_cells(a, todo)
+    if a.dry_run:
+        return status
+    tasks = list(dict.fromkeys(t for t, _, _ in todo)) or parse_list(a.tasks, tuple(TASK_NAMES), "task")
+    files = write_report(a.results_dir, tasks, a.steps, a.seeds, a.physics)
+    print("wrote " + ", ".join(files), flush=True)
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
