@@ -100,7 +100,7 @@ def plan(a: dict, grid: dict[str, list[str]]):
     {"settings": [k...], "batched": [fields varying within the program], "fixed": {structural field: value}}."""
     import envs
     from metapg_jax.config import to_dict
-    from metapg_jax.sweep import set_fields, structural_fields
+    from metapg_jax.sweep import get_field, set_fields, structural_fields
 
     fixed = run_lib.parse_overrides(a["overrides"])
     for field in grid:
@@ -128,18 +128,12 @@ def plan(a: dict, grid: dict[str, list[str]]):
         first = configs[members[0]]
         same, apart = [members[0]], []
         for k in members[1:]:
-            rebuilt = set_fields(first, {f: _get(configs[k], f) for f in batched})
+            rebuilt = set_fields(first, {f: get_field(configs[k], f) for f in batched})
             (same if to_dict(rebuilt) == to_dict(configs[k]) else apart).append(k)
         for ks in [same] + [[k] for k in apart]:
             out.append({"settings": ks, "batched": batched if len(ks) > 1 else [],
                         "fixed": dict(zip(structural, key))})
     return settings, configs, out, env
-
-
-def _get(cfg, dotted):
-    from metapg_jax.sweep import get_field
-
-    return get_field(cfg, dotted)
 
 
 def default_out(a: dict) -> str:
