@@ -71,6 +71,18 @@ VARIANTS: dict[str, Variant] = {
         "drive its log-std to the floor, so exploration collapses; one step keeps it exploring (the MJX "
         "ablation at 300k: 1,533 -> 2,810 on HalfCheetah).",
         lambda cfg: None if cfg.meta.teacher_steps == 1 else ["meta.teacher_steps=1"]),
+    "variance-teacher": Variant(
+        "variance teacher", "`--teacher=variance`: the teacher's mean is the student's action, only its "
+                            "log-std is learned (the paper's design (ii))",
+        "The independent teacher starts as a network of its own and barely moves at the paper's learning rate, so "
+        "D0 holds actions far from the student's (RMS distance ~0.8-1.0 of the action range on Hopper): data about "
+        "a policy the student is not. Exploring around the student's action makes D0 informative for it.",
+        lambda cfg: [], ("--method=meta", "--teacher=variance")),
+    "teacher-lr-1e-3": Variant(
+        "teacher lr 1e-3", "`meta.lr=1e-3` (paper 1e-4)",
+        "At 1e-4 with one REINFORCE step per cycle the teacher's log-std moves from -0.50 to about -0.40 in 300k "
+        "steps on Hopper: whatever the meta reward says, the teacher cannot act on it within the budget.",
+        lambda cfg: ["meta.lr=0.001"]),
     "normalised-reward": Variant(
         "normalised meta reward", "`meta.normalize_meta_reward=true`",
         "The meta reward has no baseline and its scale grows with the returns; a running mean/std removes the "
@@ -241,7 +253,8 @@ def markdown(results_dir: str, tasks: list[str], upto: int, seeds: int, build: d
              "`<task>/README.md` (what changed, from the stored configs; teacher log-std), `<task>/per_seed.csv`, "
              "`<task>/curves.png`; cells: `cells/<task>/<variant>`.", "",
              "## Variants and the hypotheses behind them", "",
-             "Written before the runs.", "", "| variant | change | hypothesis |", "|---|---|---|"]
+             "Each written before its variant ran (the variance-teacher and teacher-lr entries after the paper "
+             "teacher's Hopper cell, whose metrics they cite: `cells/hopper/paper-teacher/metrics.jsonl`).", "", "| variant | change | hypothesis |", "|---|---|---|"]
     for name, v in VARIANTS.items():
         lines.append(f"| {v.label} | {v.change} | {v.hypothesis} |")
     for task in tasks:
