@@ -294,7 +294,8 @@ def markdown(results_dir: str, tasks: list[str], upto: int, seeds: int, build: d
 def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, physics: str = "mujoco") -> list[str]:
     from metapg_jax import reporting
 
-    files, summary = [], {"upto": upto, "seeds": seeds, "tasks": {}}
+    build = cells.build_info(results_dir)
+    files, summary = [], {"upto": upto, "seeds": seeds, "build": build, "tasks": {}}
     for task in tasks:
         rows, missing = task_rows(results_dir, task, upto)
         if rows:
@@ -308,7 +309,7 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
     os.makedirs(results_dir, exist_ok=True)
     md = os.path.join(results_dir, "README.md")
     with open(md, "w") as f:
-        f.write(markdown(results_dir, tasks, upto, seeds, cells.build_info(results_dir), physics))
+        f.write(markdown(results_dir, tasks, upto, seeds, build, physics))
     reporting.write_json_atomic(os.path.join(results_dir, "screen.json"), summary)
     return [md, os.path.join(results_dir, "screen.json")] + files
 

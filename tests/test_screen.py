@@ -1,12 +1,14 @@
 """experiments.screen: every variant changes what it says on the screen's tasks, and a tiny Pendulum screen
 runs, skips what is done, and reports against the control and the better noise baseline."""
 
+import copy
 import json
 import os
+import shutil
 
 import pytest
 
-from experiments import ablation, screen
+from experiments import ablation, cells, screen
 from experiments.run import build_parser, config_from_run_args, run_args
 from metapg_jax.config import to_dict
 
@@ -90,3 +92,25 @@ def test_bad_input_is_one_line_before_anything_trains(tmp_path, capsys):
     assert err.startswith("error: pendulum/paper-teacher:") and "\n" not in err
     assert not os.path.exists(f"{tmp_path}/r")
 
+
+
+def test_the_committed_report_rebuilds_from_its_archive_byte_for_byte(tmp_path, monkeypatch):
+    """``results/screen`` is what ``--report-only`` builds from ``results/screen/cells`` (its build provenance,
+    stored in ``screen.json``, pinned)."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    committed = os.path.join(root, "results", "screen")
+    with open(os.path.join(committed, "screen.json")) as f:
+        stored = json.load(f)
+    shutil.copytree(os.path.join(committed, "cells"), tmp_path / "results" / "screen" / "cells")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cells, "build_info", lambda runs_dir: copy.deepcopy(stored["build"]))
+    argv = ["--report-only", "--results-dir=results/screen", f"--steps={stored['upto']}",
+            f"--seeds={stored['seeds']}", "--tasks=" + ",".join(stored["tasks"])]
+    assert screen.main(argv) == 0
+    out = tmp_path / "results" / "screen"
+    written = sorted(str(p.relative_to(out)) for p in out.rglob("*")
+                     if p.is_file() and p.relative_to(out).parts[0] != "cells" and p.suffix != ".png")
+    assert "README.md" in written and "screen.json" in written
+    for name in written:
+        with open(os.path.join(committed, name), "rb") as f:
+            assert (out / name).read_bytes() == f.read(), name
