@@ -265,7 +265,7 @@ def markdown(results_dir: str, tasks: list[str], upto: int, seeds: int, build: d
                          "not run or not finished).")
             continue
         control, base = rows[0], best_baseline(rows)
-        lines += [f"| variant | final (mean ± std) | 95% CI | vs paper teacher (p) | vs {base['name'] if base else 'best noise baseline'} (p) "
+        lines += [f"| variant | final (mean ± std) | 95% CI | vs paper teacher (p) | vs {VARIANTS[base['name']].label if base else 'best noise baseline'} (p) "
                   "| teacher log-std | seeds at floor |", "|---|---|---|---|---|---|---|"]
         for r in rows:
             vs_c = "–" if r["control"] else "{1} ({0})".format(stats.fmt_p(verdict(r, control)[0]), verdict(r, control)[1])
