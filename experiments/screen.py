@@ -83,6 +83,12 @@ VARIANTS: dict[str, Variant] = {
         "At 1e-4 with one REINFORCE step per cycle the teacher's log-std moves from -0.50 to about -0.40 in 300k "
         "steps on Hopper: whatever the meta reward says, the teacher cannot act on it within the budget.",
         lambda cfg: ["meta.lr=0.001"]),
+    "frozen-teacher": Variant(
+        "frozen teacher", "`meta.lr=0`: the teacher stays at its initialisation (a control)",
+        "Null control for the learning itself: if the meta reward carries information the teacher uses, a teacher "
+        "frozen at its initialisation collects worse data than the learned one; if it does as well, what the "
+        "variants change is the data's spread, not what the teacher learns.",
+        lambda cfg: ["meta.lr=0"]),
     "normalised-reward": Variant(
         "normalised meta reward", "`meta.normalize_meta_reward=true`",
         "The meta reward has no baseline and its scale grows with the returns; a running mean/std removes the "

@@ -131,7 +131,7 @@ class MetaConfig:
     init_log_std: float = -0.5      # initial log-std of the teacher (ours; the paper does not say)
     min_log_std: float = -5.0       # log-std bounds (ours)
     max_log_std: float = 1.0
-    lr: float = 1e-4                # teacher Adam learning rate (paper)
+    lr: float = 1e-4                # teacher Adam learning rate (paper); 0 = frozen at its init (a control)
     explore_steps: int = 100        # |D0| per cycle
     eval_steps: int = 200           # |D1| per cycle, per eval env
     teacher_steps: int = 1          # REINFORCE Adam steps per cycle
@@ -385,8 +385,11 @@ def validate(cfg: Config) -> Config:
                          f"it; 1 keeps it fixed), got {cfg.noise.adapt_coef!r}")
     _positive("meta.visit_samples", cfg.meta.visit_samples)
     if cfg.run.method == "meta":
-        for name in ("lr", "explore_steps", "eval_steps", "teacher_steps", "eval_envs"):
+        for name in ("explore_steps", "eval_steps", "teacher_steps", "eval_envs"):
             _positive(f"meta.{name}", getattr(cfg.meta, name))
+        # meta.lr = 0 freezes the teacher at its initialisation (a control: the data without the learning).
+        if not (math.isfinite(cfg.meta.lr) and cfg.meta.lr >= 0):
+            raise ValueError(f"meta.lr must be a finite number >= 0 (0 = a frozen teacher), got {cfg.meta.lr!r}")
         if not cfg.meta.hidden or min(cfg.meta.hidden) <= 0:
             raise ValueError(f"meta.hidden must be a non-empty tuple of positive widths, got {cfg.meta.hidden}")
         if not cfg.meta.min_log_std < cfg.meta.init_log_std < cfg.meta.max_log_std:

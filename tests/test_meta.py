@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from metapg_jax import meta
-from metapg_jax.config import DDPGConfig, MetaConfig
+from metapg_jax.config import DDPGConfig, MetaConfig, validate
 from metapg_jax.ddpg import DDPG
 from metapg_jax.teacher import Teacher
 from metapg_jax.train import make_train
@@ -109,6 +109,22 @@ def test_lookahead_does_not_touch_the_student(student_from):
     same = jax.tree.leaves(jax.tree.map(lambda a, b: bool(np.array_equal(a, b)), state.student, new.student))
     assert all(same) == (student_from == "pi")
     assert np.isfinite(float(metrics["r_hat_lookahead"]))
+
+
+def test_a_zero_learning_rate_freezes_the_teacher_and_nothing_else():
+    cfg = tiny_config("meta", steps=600, **{"meta.lr": 0.0})
+    trainer = make_train(cfg)
+    state = trainer.init(jax.random.PRNGKey(0))
+    cycle = jax.jit(trainer.cycle)
+    new = cycle(cycle(state)[0])[0]
+    assert all(jax.tree.leaves(jax.tree.map(np.array_equal, state.explorer.params, new.explorer.params)))
+    assert not all(jax.tree.leaves(jax.tree.map(np.array_equal, state.student.actor, new.student.actor)))
+    learner = make_train(tiny_config("meta", steps=600))  # the same run with the preset's lr: the teacher moves
+    learn = jax.jit(learner.cycle)
+    learning = learn(learn(learner.init(jax.random.PRNGKey(0)))[0])[0]
+    assert not all(jax.tree.leaves(jax.tree.map(np.array_equal, state.explorer.params, learning.explorer.params)))
+    with pytest.raises(ValueError, match="meta.lr must be a finite number >= 0"):
+        validate(tiny_config("meta", steps=300, **{"meta.lr": -1e-4}))
 
 
 @pytest.mark.parametrize("baseline,eval_envs", [("lookahead", 1), ("lookahead", 2), ("fresh", 1)])

@@ -47,6 +47,7 @@ def test_each_variant_changes_the_config_it_names_and_nothing_else(task):
     assert changed["ddpg-paramnoise"]["run.method"] == ("ddpg", "meta")
     assert changed["variance-teacher"] == {"meta.teacher": ("variance", "independent")}
     assert changed["teacher-lr-1e-3"] == {"meta.lr": (1e-3, 1e-4)}
+    assert changed["frozen-teacher"] == {"meta.lr": (0.0, 1e-4)}
     if task == "hopper":  # the preset already takes one teacher step per cycle
         assert "one-teacher-step" not in changed
     else:
