@@ -22,7 +22,11 @@ import numpy as np
 
 
 def provenance() -> dict:
-    """The commit (and whether the tree had changes) and the machine, recorded with every run."""
+    """The commit (and whether the tree had changes) and the machine, recorded with every run.
+
+    ``dirty``: tracked files outside ``results/`` differ from the commit. ``results/`` holds outputs (reports
+    that a grid or screen rewrites between its cells), not code, so a rewritten report does not mark the
+    cells that start after it."""
     import platform
     import subprocess
 
@@ -44,7 +48,7 @@ def provenance() -> dict:
     except Exception as err:  # noqa: BLE001 - provenance must never stop a run
         machine["jax_error"] = repr(err)
     return {"commit": git("rev-parse", "HEAD") or "unknown",
-            "dirty": bool(git("status", "--porcelain", "--untracked-files=no")),
+            "dirty": bool(git("status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)results")),
             "machine": machine}
 
 

@@ -548,3 +548,29 @@ def test_tensorboard_is_passed_to_every_cell_and_needs_its_extra(monkeypatch, tm
                            "--results-dir", str(tmp_path / "res")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "tensorboardX" in err[0] and not runs.exists()
+
+
+def test_provenance_is_dirty_for_code_changes_not_for_rewritten_results(tmp_path):
+    import subprocess
+
+    from metapg_jax import reporting
+
+    repo = tmp_path / "repo"
+    shutil.copytree(os.path.join(ROOT, "metapg_jax"), repo / "metapg_jax")
+    (repo / "results").mkdir()
+    (repo / "results" / "table.md").write_text("a\n")
+    git = lambda *a: subprocess.run(["git", *a], cwd=repo, check=True, capture_output=True)
+    git("init", "-q")
+    git("add", "-A")
+    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "x")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("copied_reporting", repo / "metapg_jax" / "reporting.py")
+    copied = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(copied)  # its provenance() reads the copy's repository
+    assert copied.provenance()["dirty"] is False
+    (repo / "results" / "table.md").write_text("b\n")  # an output rewritten between cells
+    assert copied.provenance()["dirty"] is False
+    (repo / "metapg_jax" / "reporting.py").write_text((repo / "metapg_jax" / "reporting.py").read_text() + "\n")
+    assert copied.provenance()["dirty"] is True
+    assert reporting.provenance()["commit"] != copied.provenance()["commit"]
