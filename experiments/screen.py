@@ -114,7 +114,7 @@ VARIANTS: dict[str, Variant] = {
         "fresh R_hat(pi)", "`meta.baseline=fresh` (a D2 rollout of the updated student, stored and counted)",
         "With the preset's baseline the meta reward is R(pi'_t) - R(pi'_(t-1)): mostly the student's own progress "
         "between cycles, not D0's effect; R(pi'_t) - R(pi_t) from a fresh rollout is the improvement that D0 "
-        "caused, a less confounded signal (at 2/3 the D0 samples per stored step on Hopper).",
+        "caused, a less confounded signal (at 3/5 of the D0 share of stored steps on Hopper).",
         lambda cfg: ["meta.baseline=fresh"]),
     "two-d1-envs": Variant(
         "2 D1 envs", "`meta.eval_envs=2` (R_hat the mean over two fresh-reset rollouts; D1 stored and counted)",
