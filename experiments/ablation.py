@@ -160,9 +160,10 @@ def markdown(rows: list[dict], task: str, upto: int, build: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_report(rows: list[dict], task: str, upto: int, out: str) -> list[str]:
+def write_report(rows: list[dict], task: str, upto: int, out: str, build: dict | None = None) -> list[str]:
+    """README.md, per_seed.csv and curves.png in ``out``; ``build``: the provenance to print (default: now's)."""
     os.makedirs(out, exist_ok=True)
-    build = cells.build_info(out)
+    build = build or cells.build_info(out)
     md = os.path.join(out, "README.md")
     with open(md, "w") as f:  # rebuildable output: plain writes, like experiments.artefacts
         f.write(markdown(rows, task, upto, build))

@@ -305,7 +305,7 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
     for task in tasks:
         rows, missing = task_rows(results_dir, task, upto)
         if rows:
-            files += ablation.write_report(rows, task, upto, os.path.join(results_dir, task))
+            files += ablation.write_report(rows, task, upto, os.path.join(results_dir, task), build)
         summary["tasks"][task] = {
             "finished": {r["name"]: {"finals": [float(x) for x in r["finals"]], "mean": r["mean"], "std": r["std"],
                                      "ci_half": r["ci_half"], "commit": r["commit"],
