@@ -28,7 +28,7 @@ import os
 import sys
 from typing import Callable
 
-from experiments import ablation, cells, stats
+from experiments import ablation, cells, reproduce, stats
 from experiments.grid import METHODS, TASK_NAMES
 
 CONTROL = "paper-teacher"
@@ -148,8 +148,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def reproduce_args(a: argparse.Namespace) -> argparse.Namespace:
     """The ``experiments.reproduce`` options every cell shares."""
-    from experiments import reproduce
-
     argv = ["--preset=paper", f"--seeds={a.seeds}", f"--seed={a.seed}", f"--steps={a.steps}",
             f"--physics={a.physics}", "--no-plot", f"--runs-dir={a.runs_dir}", f"--results-dir={a.results_dir}",
             f"--checkpoint-minutes={a.checkpoint_minutes:g}"] + [f"--set={s}" for s in a.overrides]
@@ -167,18 +165,10 @@ def cell_options(task: str, name: str, physics: str) -> list[str] | None:
     return [*v.method] + [x for s in sets for x in ("--set", s)]
 
 
-def parse_list(text: str, valid, what: str) -> list[str]:
-    from experiments.reproduce import parse_list as parse
-
-    return parse(text, valid, what)
-
-
 def plan(a: argparse.Namespace) -> list[tuple[str, str, list[str]]]:
     """(task, variant, options) of every cell to run, configs validated before anything trains."""
-    from experiments import reproduce
-
-    tasks = parse_list(a.tasks, tuple(TASK_NAMES), "task")
-    names = parse_list(a.variants, tuple(VARIANTS), "variant")
+    tasks = reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
+    names = reproduce.parse_list(a.variants, tuple(VARIANTS), "variant")
     if a.seeds <= 0 or a.steps <= 0:
         raise ValueError("--seeds and --steps must be positive")
     rargs = reproduce_args(a)
@@ -197,8 +187,6 @@ def plan(a: argparse.Namespace) -> list[tuple[str, str, list[str]]]:
 
 
 def run_cells(a: argparse.Namespace, todo: list[tuple[str, str, list[str]]]) -> int:
-    from experiments import reproduce
-
     rargs = reproduce_args(a)
     status = 0
     for i, (task, name, options) in enumerate(todo, 1):
@@ -240,15 +228,17 @@ def best_baseline(rows: list[dict]) -> dict | None:
     return max(found, key=lambda r: r["mean"]) if found else None
 
 
-def verdict(r: dict, ref: dict) -> tuple[float, str]:
-    """Welch p of ``r`` vs ``ref`` and 'better'/'worse' at p < 0.05, else 'equal (n.s.)'."""
+def verdict(r: dict, ref: dict, fmt=lambda p: p) -> tuple:
+    """(``fmt`` of the Welch p of ``r`` vs ``ref``, 'better'/'worse' at p < 0.05, else 'n.s.')."""
     p = stats.welch_test(r["finals"], ref["finals"])[1]
     if not math.isfinite(p) or p >= 0.05:
-        return p, "n.s."
-    return p, "better" if r["mean"] > ref["mean"] else "worse"
+        return fmt(p), "n.s."
+    return fmt(p), "better" if r["mean"] > ref["mean"] else "worse"
 
 
-def markdown(results_dir: str, tasks: list[str], upto: int, seeds: int, build: dict, physics: str = "mujoco") -> str:
+def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "mujoco") -> str:
+    """The report; ``by_task``: task -> ``task_rows``' (rows, missing)."""
+    tasks = list(by_task)
     lines = [f"# Screen of teacher variants ({', '.join(TASK_NAMES[t] for t in tasks)}, {upto:,} env steps, "
              f"{seeds} seeds)", "",
              "Algorithm 1's knobs changed one at a time from the paper preset (`python -m experiments.screen`, "
@@ -264,7 +254,7 @@ def markdown(results_dir: str, tasks: list[str], upto: int, seeds: int, build: d
     for name, v in VARIANTS.items():
         lines.append(f"| {v.label} | {v.change} | {v.hypothesis} |")
     for task in tasks:
-        rows, missing = task_rows(results_dir, task, upto)
+        rows, missing = by_task[task]
         lines += ["", f"## {TASK_NAMES[task]}", ""]
         if not rows:
             lines.append(f"The paper teacher's cell is not finished: nothing is compared ({len(VARIANTS)} cells "
@@ -274,9 +264,8 @@ def markdown(results_dir: str, tasks: list[str], upto: int, seeds: int, build: d
         lines += [f"| variant | final (mean ± std) | 95% CI | vs paper teacher (p) | vs {VARIANTS[base['name']].label if base else 'best noise baseline'} (p) "
                   "| teacher log-std | seeds at floor |", "|---|---|---|---|---|---|---|"]
         for r in rows:
-            vs_c = "–" if r["control"] else "{1} ({0})".format(stats.fmt_p(verdict(r, control)[0]), verdict(r, control)[1])
-            vs_b = "–" if base is None or r is base else "{1} ({0})".format(stats.fmt_p(verdict(r, base)[0]),
-                                                                           verdict(r, base)[1])
+            vs_c = "–" if r["control"] else "{1} ({0})".format(*verdict(r, control, stats.fmt_p))
+            vs_b = "–" if base is None or r is base else "{1} ({0})".format(*verdict(r, base, stats.fmt_p))
             t = r["teacher"]
             lines.append(f"| {VARIANTS[r['name']].label} | {stats.fmt(r['mean'])} ± {stats.fmt(r['std'])} | "
                          f"± {stats.fmt(r['ci_half'])} | {vs_c} | {vs_b} | "
@@ -301,9 +290,9 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
     from metapg_jax import reporting
 
     build = cells.build_info(results_dir)
-    files, summary = [], {"upto": upto, "seeds": seeds, "build": build, "tasks": {}}
+    files, summary, by_task = [], {"upto": upto, "seeds": seeds, "build": build, "tasks": {}}, {}
     for task in tasks:
-        rows, missing = task_rows(results_dir, task, upto)
+        rows, missing = by_task[task] = task_rows(results_dir, task, upto)
         if rows:
             files += ablation.write_report(rows, task, upto, os.path.join(results_dir, task), build)
         summary["tasks"][task] = {
@@ -315,7 +304,7 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
     os.makedirs(results_dir, exist_ok=True)
     md = os.path.join(results_dir, "README.md")
     with open(md, "w") as f:
-        f.write(markdown(results_dir, tasks, upto, seeds, build, physics))
+        f.write(markdown(by_task, upto, seeds, build, physics))
     reporting.write_json_atomic(os.path.join(results_dir, "screen.json"), summary)
     return [md, os.path.join(results_dir, "screen.json")] + files
 
@@ -332,7 +321,7 @@ def main(argv: list[str] | None = None) -> int:
         status = run_cells(a, todo)
     if a.dry_run:
         return status
-    tasks = list(dict.fromkeys(t for t, _, _ in todo)) or parse_list(a.tasks, tuple(TASK_NAMES), "task")
+    tasks = list(dict.fromkeys(t for t, _, _ in todo)) or reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
     files = write_report(a.results_dir, tasks, a.steps, a.seeds, a.physics)
     print("wrote " + ", ".join(files), flush=True)
     return status
