@@ -48,10 +48,15 @@ def test_each_variant_changes_the_config_it_names_and_nothing_else(task):
     assert changed["variance-teacher"] == {"meta.teacher": ("variance", "independent")}
     assert changed["teacher-lr-1e-3"] == {"meta.lr": (1e-3, 1e-4)}
     assert changed["frozen-teacher"] == {"meta.lr": (0.0, 1e-4)}
+    assert changed["schedule-frozen"] == {**changed["ddpg-update-ratio"], **changed["frozen-teacher"]}
     if task == "hopper":  # the preset already takes one teacher step per cycle
-        assert "one-teacher-step" not in changed
+        assert "one-teacher-step" not in changed and screen.same_as(task, "one-teacher-step", "mujoco") == ""
+        # ... so the combination is the update-ratio cell, not run twice.
+        assert "schedule" not in changed and screen.same_as(task, "schedule", "mujoco") == "ddpg-update-ratio"
     else:
         assert changed["one-teacher-step"] == {"meta.teacher_steps": (1, 100)}
+        assert changed["schedule"] == {**changed["ddpg-update-ratio"], **changed["one-teacher-step"]}
+    assert all(screen.same_as(task, n, "mujoco") is None for n in changed)
 
 
 def test_tiny_screen_runs_skips_and_reports(tmp_path, capsys):
