@@ -53,7 +53,7 @@ import sys
 from typing import Sequence
 
 from experiments import cells, figures, tables
-from experiments.grid import GRIDS, TASKS, baseline_for, methods_for
+from experiments.grid import BASELINES, GRIDS, TASKS, baseline_for, methods_for
 
 
 def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Sequence[str] = TASKS,
@@ -118,7 +118,7 @@ def build_parser() -> argparse.ArgumentParser:
                                 description="Rebuild Table 2 and the figures from stored run folders.")
     p.add_argument("--runs-dir", default="runs/reproduce", help="grid root: <runs-dir>/<preset>/<task>/<method>")
     p.add_argument("--results-dir", default="results", help="output folder (a non-paper preset goes to <dir>/<preset>)")
-    p.add_argument("--preset", default="paper", choices=("paper", "modern"))
+    p.add_argument("--preset", default="paper", choices=tuple(BASELINES))
     p.add_argument("--student", default="ddpg", choices=tuple(GRIDS),
                    help="whose grid the run folders hold: ddpg (default) or td3 (methods: experiments.grid.GRIDS)")
     add_figure_options(p)

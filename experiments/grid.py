@@ -26,8 +26,9 @@ METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta
                 "td3-normal": "TD3 (normal noise)"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
-# for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/config.py).
-BASELINES = {"paper": BASELINE, "modern": "ddpg-normal"}
+# for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/config.py); the tuned
+# preset's DDPG is the paper preset's.
+BASELINES = {"paper": BASELINE, "modern": "ddpg-normal", "tuned": BASELINE}
 # Each student's grid: its methods (a method's options plus ``--student=<student>`` for a student other
 # than DDPG) and the baseline its Meta is compared against, whatever the preset: for TD3, TD3 with its
 # own Gaussian exploration noise.
@@ -35,6 +36,11 @@ GRIDS = {"ddpg": ("meta-independent", "meta-variance", "ddpg-paramnoise", "ddpg-
          "td3": ("meta-independent", "td3-normal")}
 STUDENT_BASELINES = {"td3": "td3-normal"}
 STUDENT_NAMES = {"ddpg": "DDPG", "td3": "TD3"}
+
+
+def noise_methods(methods) -> list[str]:
+    """The methods among ``methods`` that explore with noise, not a teacher (``--method=ddpg``)."""
+    return [m for m in methods if "--method=ddpg" in METHODS.get(m, ())]
 
 
 def methods_for(student: str = "ddpg") -> tuple[str, ...]:

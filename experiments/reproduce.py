@@ -3,6 +3,7 @@
     python -m experiments.reproduce                                   # the whole grid, paper preset, 8 seeds
     python -m experiments.reproduce --tasks pendulum,reacher --methods meta-independent,ddpg-paramnoise
     python -m experiments.reproduce --preset modern                  # results/modern/
+    python -m experiments.reproduce --preset tuned --physics mujoco --results-dir results   # results/tuned/
     python -m experiments.reproduce --artefacts-only --embedding pca  # no training, rebuild from what is stored
 
 Each grid cell is one ``experiments.run.main`` call writing
@@ -50,7 +51,7 @@ import time
 
 from experiments.artefacts import add_figure_options, build_all
 from experiments.cells import archive_cell, archive_dir_for, read_json, results_dir_for
-from experiments.grid import GRIDS, METHODS, TASKS, baseline_for, methods_for
+from experiments.grid import BASELINES, GRIDS, METHODS, TASKS, baseline_for, methods_for
 
 # Where --physics=mujoco keeps its grid by default, apart from the MJX grid's runs/reproduce and results.
 MUJOCO_RUNS, MUJOCO_RESULTS = "runs/reproduce-mujoco", "results/mujoco"
@@ -78,8 +79,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="base PRNG seed of every cell (default 0)")
     p.add_argument("--steps", type=int, default=None,
                    help="env steps per seed for every cell (default: each task's paper budget)")
-    p.add_argument("--preset", default="paper", choices=("paper", "modern"),
-                   help="'paper' (default; results in --results-dir) or 'modern' (results in <results-dir>/modern)")
+    p.add_argument("--preset", default="paper", choices=tuple(BASELINES),
+                   help="'paper' (default; results in --results-dir), 'modern' or 'tuned' (results in "
+                        "<results-dir>/<preset>)")
     p.add_argument("--source", default="gymnasium", help="MuJoCo models: gymnasium (default) or brax")
     p.add_argument("--physics", default="mjx", choices=("mjx", "mujoco"),
                    help="engine of the MuJoCo tasks: mjx (default) or mujoco (MuJoCo's C engine; its cells go to "

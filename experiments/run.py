@@ -81,7 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "--method or --student then takes; repeatable; stored with the run, so --resume imports it "
                         "again")
     p.add_argument("--preset", default=None,
-                   help="'paper' (2018 baselines DDPG; default) or 'modern' (256-256, 1 update/step)")
+                   help="'paper' (2018 baselines DDPG; default), 'modern' (256-256, 1 update/step) or 'tuned' "
+                        "(the paper preset with the screen's Meta schedule)")
     p.add_argument("--noise", default=None,
                    help="DDPG exploration noise: normal, ou, adaptive-param, none (default: the preset's)")
     p.add_argument("--seeds", type=int, default=None, help=f"number of seeds trained at once (default {d['seeds']})")

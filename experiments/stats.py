@@ -79,6 +79,22 @@ def welch_test(a: Sequence[float], b: Sequence[float]) -> tuple[float, float]:
     return float(res.statistic), float(res.pvalue)
 
 
+def welch_difference(a: Sequence[float], b: Sequence[float], level: float = 0.95) -> tuple[float, float]:
+    """(mean(a) - mean(b), half-width of its Welch confidence interval: t(level, Welch-Satterthwaite df) times
+    sqrt(s_a^2/n_a + s_b^2/n_b)); half-width NaN when either has fewer than 2 values."""
+    from scipy import stats
+
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    diff = float(a.mean() - b.mean()) if a.size and b.size else math.nan
+    if a.size < 2 or b.size < 2:
+        return diff, math.nan
+    va, vb = np.var(a, ddof=1) / a.size, np.var(b, ddof=1) / b.size
+    if va + vb == 0:
+        return diff, 0.0
+    df = (va + vb) ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1))
+    return diff, float(stats.t.ppf(0.5 + level / 2, df) * math.sqrt(va + vb))
+
+
 def first_step_reaching(steps: np.ndarray, curve: np.ndarray, threshold: float) -> int | None:
     """The first env step at which ``curve`` >= ``threshold``, or None if it never does."""
     curve = np.asarray(curve, np.float64)

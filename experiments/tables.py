@@ -15,9 +15,10 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from experiments.cells import RunResult, cell_provenance
-from experiments.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for, grid_label, STUDENT_NAMES
+from experiments.grid import (BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for, grid_label, noise_methods,
+                             STUDENT_NAMES)
 from experiments.stats import (FINAL_DEFINITION, first_step_reaching, fmt, fmt_p, mean_std, num_final_evaluations,
-                               stats_definition, t_interval, welch_test)
+                               stats_definition, t_interval, welch_difference, welch_test)
 
 # The paper's Table 2 (Xu et al., 2018): final return mean ± std, Meta vs DDPG; 3 seeds, gym v1 tasks.
 PAPER_TABLE2 = {
@@ -66,8 +67,27 @@ def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str], bas
                 row["welch"] = {"t": t, "p": p, "difference": a["mean"] - b["mean"]}
             else:
                 row["welch_skipped"] = "budgets differ"
+        row["vs_best_noise"] = _vs_best_noise(row["methods"], methods)
         rows.append(row)
     return rows
+
+
+def _vs_best_noise(cells: dict, methods: Sequence[str]) -> dict | None:
+    """Meta (independent) against the noise baseline with the higher mean final return among the finished
+    ones of the same budget: difference, its 95% Welch CI, Welch t and p, and 'better'/'worse' at p < 0.05
+    (else 'n.s.'); None when Meta or every noise baseline is unfinished."""
+    a = cells.get(META, {})
+    if a.get("status") != "done":
+        return None
+    found = [m for m in noise_methods(methods) if cells[m].get("status") == "done" and cells[m]["budget"] == a["budget"]]
+    if not found:
+        return None
+    best = max(found, key=lambda m: cells[m]["mean"])
+    diff, half = welch_difference(a["per_seed"], cells[best]["per_seed"])
+    t, p = welch_test(a["per_seed"], cells[best]["per_seed"])
+    verdict = "n.s." if not (math.isfinite(p) and p < 0.05) else ("better" if diff > 0 else "worse")
+    return {"method": best, "difference": diff, "ci95": [diff - half, diff + half] if math.isfinite(half) else None,
+            "t": t, "p": p, "verdict": verdict}
 
 
 def _cell_text(cell: dict) -> str:
@@ -154,6 +174,19 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
         tail = (f"{fmt(w['difference'])} | {fmt(w['t'], 2)} | {fmt_p(w['p'])}" if w else f"{na} | n/a | n/a")
         md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
                   " | ".join(_ci_text(row["methods"][m]) for m in methods) + f" | {tail} |")
+    md += ["", "## Meta (independent) against the better noise baseline", "",
+           "Per task, the noise baseline with the higher mean final return (of those finished at Meta's budget); "
+           "Meta − it with the 95% Welch CI of the difference (t(0.975, Welch-Satterthwaite df)); 'better' or "
+           "'worse': Welch p < 0.05, else 'n.s.'.", "",
+           "| task | better noise baseline | Meta (ind.) − it | 95% CI | p | verdict |", "|---|---|---|---|---|---|"]
+    for row in rows:
+        v = row["vs_best_noise"]
+        if v is None:
+            md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | n/a | n/a | n/a | n/a | a cell not finished |")
+            continue
+        ci = "n/a" if v["ci95"] is None else f"[{fmt(v['ci95'][0])}, {fmt(v['ci95'][1])}]"
+        md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | {METHOD_NAMES.get(v['method'], v['method'])} | "
+                  f"{fmt(v['difference'])} | {ci} | {fmt_p(v['p'])} | {v['verdict']} |")
     md.append(footer)
     paths = [os.path.join(out_dir, n) for n in ("table2.md", "table2.json", "table2_per_seed.csv")]
     with open(paths[0], "w") as f:

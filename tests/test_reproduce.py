@@ -20,7 +20,7 @@ from scipy import stats
 
 from experiments import artefacts, cells, figures, grid, reproduce, tables
 from experiments.stats import (final_returns, first_step_reaching, fmt, mean_std, num_final_evaluations,
-                               t_interval, welch_test)
+                               t_interval, welch_difference, welch_test)
 from tests.helpers import fabricate_run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -52,6 +52,13 @@ def test_mean_std_t_interval_and_welch_match_the_formulas():
     got_t, got_p = welch_test(a, b)
     assert got_t == pytest.approx(t) and got_p == pytest.approx(2 * stats.t.sf(abs(t), df))
     assert all(math.isnan(v) for v in welch_test(a, b[:1]))
+    # The difference's Welch interval: t(0.975, df) * sqrt(va/na + vb/nb), scipy's own interval too.
+    diff, half = welch_difference(a, b)
+    assert diff == pytest.approx(a.mean() - b.mean())
+    assert half == pytest.approx(stats.t.ppf(0.975, df) * math.sqrt(va + vb))
+    ci = stats.ttest_ind(a, b, equal_var=False).confidence_interval(0.95)
+    assert (diff - half, diff + half) == pytest.approx((ci.low, ci.high))
+    assert math.isnan(welch_difference(a, b[:1])[1])
     assert math.isnan(t_interval([3.0])[1]) and math.isnan(mean_std([3.0])[1])
 
 
@@ -228,6 +235,31 @@ def test_figures_readme_and_manifest(fabricated):
     assert cell["seeds"] == 4 and cell["budget_env_steps"] == 20000 and cell["wall_seconds"] == pytest.approx(2.0)
     assert manifest["build"]["machine"]["cpu_count"] == os.cpu_count()
     assert "teacher_designs_idp.png" in (res / "README.md").read_text()
+
+
+def test_table2_judges_meta_against_the_better_noise_baseline_per_task(tmp_path):
+    """The verdict row: the noise baseline with the higher mean (of the same budget), Meta minus it with the Welch
+    CI of the difference, p, and 'better'/'worse' only at p < 0.05."""
+    rng = np.random.default_rng(3)
+    steps = np.arange(1, 11) * 1000
+    data = {"hopper": {"meta-independent": rng.normal(900, 30, (4, 10)), "ddpg-paramnoise": rng.normal(500, 40, (4, 10)),
+                       "ddpg-normal": rng.normal(700, 40, (4, 10))},
+            "reacher": {"meta-independent": rng.normal(-10, 1, (4, 10)), "ddpg-normal": rng.normal(-10.2, 1, (4, 10))},
+            "pendulum": {"ddpg-normal": rng.normal(-200, 10, (4, 10))}}
+    results = {}
+    for task, cells_ in data.items():
+        for method, values in cells_.items():
+            fabricate_run(tmp_path / task / method, task, method, values, steps)
+            results[(task, method)] = cells.load_run(str(tmp_path / task / method), task, method)
+    rows = {r["task"]: r for r in tables.table2_rows(results, list(data), grid.GRIDS["ddpg"])}
+    v = rows["hopper"]["vs_best_noise"]
+    a, b = data["hopper"]["meta-independent"][:, -1], data["hopper"]["ddpg-normal"][:, -1]
+    ci = stats.ttest_ind(a, b, equal_var=False).confidence_interval(0.95)
+    assert v["method"] == "ddpg-normal" and v["verdict"] == "better"
+    assert v["difference"] == pytest.approx(a.mean() - b.mean()) and v["ci95"] == pytest.approx([ci.low, ci.high])
+    assert v["p"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue)
+    assert rows["reacher"]["vs_best_noise"]["verdict"] == "n.s."  # the one noise baseline run, p >= 0.05
+    assert rows["pendulum"]["vs_best_noise"] is None  # no Meta cell
 
 
 def test_modern_preset_compares_meta_with_its_own_gaussian_noise_ddpg(tmp_path):

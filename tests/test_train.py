@@ -154,6 +154,29 @@ def test_paper_schedules_per_task(task):
     assert make_config(task, "ddpg", overrides={"run.train_steps": 7}).run.train_steps == 7
 
 
+@pytest.mark.parametrize("task", ["pendulum", "inverted_pendulum", "hopper", "halfcheetah"])
+def test_tuned_preset_is_the_paper_schedule_with_ddpgs_update_ratio_and_one_teacher_step(task):
+    from experiments.ablation import config_diff
+    from experiments.grid import BASELINES
+    from metapg_jax.config import PRESETS, TUNED_META, to_dict
+
+    assert set(BASELINES) == set(PRESETS)
+    paper, tuned = make_config(task, "meta"), make_config(task, "meta", "tuned")
+    diff = config_diff(to_dict(tuned), to_dict(paper))
+    assert set(diff) - {"meta.teacher_steps"} == {"preset", *TUNED_META} - {"meta.teacher_steps"}
+    # DDPG's 50 updates per 100 stored steps for the student; the look-ahead keeps the paper's count.
+    assert tuned.run.train_steps * 2 == paper.steps_per_cycle
+    assert tuned.meta.lookahead_steps == paper.run.train_steps and tuned.meta.teacher_steps == 1
+    assert tuned.run.eval_every == paper.run.eval_every
+    for noise in ("adaptive-param", "normal"):  # the baselines are the paper preset's
+        assert config_diff(to_dict(make_config(task, "ddpg", "tuned", noise=noise)),
+                           to_dict(make_config(task, "ddpg", noise=noise))) == {"preset": ("tuned", "paper")}
+    # A field named with --set is left as set; a longer cycle (a second D1 env) keeps the ratio.
+    assert make_config(task, "meta", "tuned", overrides={"meta.teacher_steps": 5}).meta.teacher_steps == 5
+    two = make_config(task, "meta", "tuned", overrides={"meta.eval_envs": 2})
+    assert two.run.train_steps * 2 == two.steps_per_cycle
+
+
 def test_the_replay_buffer_is_never_copied_in_a_cycle():
     """The buffer is written in place and the minibatches gather from it: the compiled chunk holds no
     copy of a buffer-sized array. (With one seed, XLA once fused the gathers with the write and then
