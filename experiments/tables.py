@@ -182,7 +182,7 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     for row in rows:
         v = row["vs_best_noise"]
         if v is None:
-            md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | n/a | n/a | n/a | n/a | a cell not finished |")
+            md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | n/a | n/a | n/a | n/a | not compared (a cell not run or not finished) |")
             continue
         ci = "n/a" if v["ci95"] is None else f"[{fmt(v['ci95'][0])}, {fmt(v['ci95'][1])}]"
         md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | {METHOD_NAMES.get(v['method'], v['method'])} | "
