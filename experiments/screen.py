@@ -143,7 +143,7 @@ VARIANTS: dict[str, Variant] = {
         "(2,955 and 3,468), with the log-std off its floor, where the update ratio alone left 6 of 8 seeds at it.",
         _combined(_ddpg_ratio, _one_step)),
     "schedule-frozen": Variant(
-        "update ratio, frozen teacher", "DDPG's update ratio and `meta.lr=0` (a control for the combination)",
+        "update ratio with a frozen teacher", "DDPG's update ratio and `meta.lr=0` (a control for the combination)",
         "Null control for the learning in the combined schedule: the frozen teacher did as well as the learned "
         "one under the paper schedule on both tasks; if REINFORCE adds nothing under the better schedule either, "
         "this cell equals the combination's, and what helps is the schedule, not the learned exploration.",
