@@ -1,7 +1,7 @@
 """A rebuild from the committed cell archive gives the committed tables and JSON, byte for byte.
 
 ``results`` (paper preset), ``results/modern``, ``results/mujoco`` (paper preset on MuJoCo's C engine) and
-``results/td3`` (the TD3 grid) each hold an archive of finished cells (``cells/<task>/<method>``) and what
+``results/td3`` (the TD3 grid) and ``results/tuned`` (the tuned preset on the C engine, base seed 100) each hold an archive of finished cells (``cells/<task>/<method>``) and what
 ``python -m experiments.reproduce --artefacts-only --runs-dir runs/archived-only ...`` built from that
 archive alone (``runs/archived-only`` does not exist: every cell is read from the archive). Each is rebuilt
 here with ``experiments.artefacts.build_all`` into a tmp folder laid out like the repository (the paths in
@@ -33,7 +33,8 @@ from experiments import artefacts, cells
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # committed folder -> (build_all's results_dir, preset) of the build that wrote it
 BUILDS = {"results": ("results", "paper"), "results/modern": ("results", "modern"),
-          "results/mujoco": ("results/mujoco", "paper"), "results/td3": ("results/td3", "paper")}
+          "results/mujoco": ("results/mujoco", "paper"), "results/td3": ("results/td3", "paper"),
+          "results/tuned": ("results", "tuned")}
 
 
 def _first_difference(a: bytes, b: bytes) -> str:
@@ -44,7 +45,7 @@ def _first_difference(a: bytes, b: bytes) -> str:
     return f"{len(lines_a)} lines rebuilt, {len(lines_b)} committed"
 
 
-@pytest.mark.parametrize("folder", list(BUILDS), ids=["paper", "modern", "mujoco", "td3"])
+@pytest.mark.parametrize("folder", list(BUILDS), ids=["paper", "modern", "mujoco", "td3", "tuned"])
 def test_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
     results_dir, preset = BUILDS[folder]
     committed = os.path.join(ROOT, folder)
