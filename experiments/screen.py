@@ -22,8 +22,8 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import functools
 import json
-import math
 import os
 import sys
 from typing import Callable
@@ -181,26 +181,33 @@ def reproduce_args(a: argparse.Namespace) -> argparse.Namespace:
     return reproduce.build_parser().parse_args(argv + (["--quiet"] if a.quiet else []))
 
 
-def _variant_options(task: str, name: str, physics: str) -> list[str] | None:
+@functools.lru_cache(maxsize=None)
+def _options(task: str, name: str, physics: str) -> tuple[str, ...] | None:
+    """``_variant_options``, cached: ``same_as`` compares every earlier variant's options on the task."""
     from metapg_jax.config import make_config
 
     v = VARIANTS[name]
     sets = v.sets(make_config(task, "meta", physics=physics))
     if sets is None:
         return None
-    return [*v.method] + [x for s in sets for x in ("--set", s)]
+    return (*v.method, *(x for s in sets for x in ("--set", s)))
+
+
+def _variant_options(task: str, name: str, physics: str) -> list[str] | None:
+    options = _options(task, name, physics)
+    return None if options is None else list(options)
 
 
 def same_as(task: str, name: str, physics: str) -> str | None:
     """Why the variant has no cell of its own on ``task``: '' where its change is the task's preset already,
     else the earlier variant whose cell it would repeat; None where it has its own cell."""
-    options = _variant_options(task, name, physics)
+    options = _options(task, name, physics)
     if options is None:
         return ""
     for other in VARIANTS:
         if other == name:
             return None
-        if _variant_options(task, other, physics) == options:
+        if _options(task, other, physics) == options:
             return other
     return None
 
@@ -276,10 +283,8 @@ def best_baseline(rows: list[dict]) -> dict | None:
 
 def verdict(r: dict, ref: dict, fmt=lambda p: p) -> tuple:
     """(``fmt`` of the Welch p of ``r`` vs ``ref``, 'better'/'worse' at p < 0.05, else 'n.s.')."""
-    p = stats.welch_test(r["finals"], ref["finals"])[1]
-    if not math.isfinite(p) or p >= 0.05:
-        return fmt(p), "n.s."
-    return fmt(p), "better" if r["mean"] > ref["mean"] else "worse"
+    _, p, word = stats.verdict(r["finals"], ref["finals"])
+    return fmt(p), word
 
 
 def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "mujoco") -> str:

@@ -95,6 +95,15 @@ def welch_difference(a: Sequence[float], b: Sequence[float], level: float = 0.95
     return diff, float(stats.t.ppf(0.5 + level / 2, df) * math.sqrt(va + vb))
 
 
+def verdict(a: Sequence[float], b: Sequence[float], alpha: float = 0.05) -> tuple[float, float, str]:
+    """(t, p, word) of Welch's test of a vs b: word 'better' (mean(a) > mean(b)) or 'worse' at p < ``alpha``,
+    else 'n.s.' (also when p is NaN: fewer than 2 values on a side)."""
+    t, p = welch_test(a, b)
+    if not (math.isfinite(p) and p < alpha):
+        return t, p, "n.s."
+    return t, p, "better" if float(np.mean(a)) > float(np.mean(b)) else "worse"
+
+
 def first_step_reaching(steps: np.ndarray, curve: np.ndarray, threshold: float) -> int | None:
     """The first env step at which ``curve`` >= ``threshold``, or None if it never does."""
     curve = np.asarray(curve, np.float64)

@@ -18,7 +18,7 @@ from experiments.cells import RunResult, cell_provenance
 from experiments.grid import (BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for, grid_label, noise_methods,
                              STUDENT_NAMES)
 from experiments.stats import (FINAL_DEFINITION, first_step_reaching, fmt, fmt_p, mean_std, num_final_evaluations,
-                               stats_definition, t_interval, welch_difference, welch_test)
+                               stats_definition, t_interval, verdict, welch_difference, welch_test)
 
 # The paper's Table 2 (Xu et al., 2018): final return mean ± std, Meta vs DDPG; 3 seeds, gym v1 tasks.
 PAPER_TABLE2 = {
@@ -84,10 +84,9 @@ def _vs_best_noise(cells: dict, methods: Sequence[str]) -> dict | None:
         return None
     best = max(found, key=lambda m: cells[m]["mean"])
     diff, half = welch_difference(a["per_seed"], cells[best]["per_seed"])
-    t, p = welch_test(a["per_seed"], cells[best]["per_seed"])
-    verdict = "n.s." if not (math.isfinite(p) and p < 0.05) else ("better" if diff > 0 else "worse")
+    t, p, word = verdict(a["per_seed"], cells[best]["per_seed"])
     return {"method": best, "difference": diff, "ci95": [diff - half, diff + half] if math.isfinite(half) else None,
-            "t": t, "p": p, "verdict": verdict}
+            "t": t, "p": p, "verdict": word}
 
 
 def _cell_text(cell: dict) -> str:
@@ -130,10 +129,11 @@ def budget_text(task: str, budgets: dict) -> str:
 
 
 def engines_text(results: Iterable[RunResult]) -> str:
-    """How the stored MuJoCo cells were stepped: 'MJX', "MuJoCo's C engine" or both (pendulum is JAX)."""
+    """How the stored MuJoCo cells were stepped: 'MJX', "MuJoCo's C engine" or both (pendulum is JAX), and
+    what a grid with no MuJoCo cell stored has: the JAX Pendulum only."""
     physics = {r.config["env"].get("physics", "mjx") for r in results if r.task != "pendulum"}
     names = {"mjx": "MJX", "mujoco": "MuJoCo's C engine"}
-    return " and ".join(names[p] for p in sorted(physics)) if physics else "MJX"
+    return " and ".join(names[p] for p in sorted(physics)) if physics else "JAX (Pendulum only: no MuJoCo cell stored)"
 
 
 def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str,
