@@ -1,4 +1,4 @@
-"""experiments.reproduce --launcher ray: a tiny two-task, two-method grid on a local Ray instance that the
+"""experiments.reproduce --launcher ray: a tiny two-task grid (one method, two cells) on a local Ray instance that the
 command starts itself, with every cell's worker killed once mid-run: Ray retries the cells, each
 resumes from its last checkpoint, and the archive holds the numbers of an uninterrupted local run."""
 
@@ -18,13 +18,13 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TINY = ["--seeds", "2", "--steps", "1500", "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16",
         "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=64", "--set", "ddpg.batch_size=16",
         "--set", "env.episode_length=60"]
-GRID = ["--tasks", "pendulum,inverted_pendulum", "--methods", "ddpg-paramnoise,ddpg-normal", "--physics", "mujoco"]
+TASKS, METHODS = ("pendulum", "inverted_pendulum"), ("ddpg-normal",)
+GRID = ["--tasks", ",".join(TASKS), "--methods", ",".join(METHODS), "--physics", "mujoco"]
 
 
 def _kill_workers_once_checkpointed(runs, done, killed):
     """SIGKILL every Ray worker running a cell as soon as some cell has a checkpoint and no cell has finished."""
-    cells = [os.path.join(runs, "paper", t, m) for t in ("pendulum", "inverted_pendulum")
-             for m in ("ddpg-paramnoise", "ddpg-normal")]
+    cells = [os.path.join(runs, "paper", t, m) for t in TASKS for m in METHODS]
     while not done.is_set():
         checkpointed = any(os.path.isdir(os.path.join(c, "checkpoints")) and
                            any(d.isdigit() for d in os.listdir(os.path.join(c, "checkpoints"))) for c in cells)
@@ -54,8 +54,8 @@ def test_the_grid_on_a_local_ray_instance_survives_killed_workers(tmp_path):
     assert proc.returncode == 0, log[-4000:]
     assert killed, "no worker was killed: the test did not test a failure"
     assert "Started a local Ray instance" in log and "resumed after" in log
-    for task in ("pendulum", "inverted_pendulum"):
-        for method in ("ddpg-paramnoise", "ddpg-normal"):
+    for task in TASKS:
+        for method in METHODS:
             archived = os.path.join(results, "cells", task, method)
             summary = json.load(open(os.path.join(archived, "summary.json")))
             assert summary["env_steps"] == 1500 and summary["num_seeds"] == 2
@@ -64,14 +64,13 @@ def test_the_grid_on_a_local_ray_instance_survives_killed_workers(tmp_path):
             rows = [json.loads(line) for line in open(os.path.join(archived, "metrics.jsonl"))]
             assert sorted((r["seed"], r["chunk"]) for r in rows) == [(s, c) for s in range(2) for c in range(5)]
     table = json.load(open(os.path.join(results, "table2.json")))
-    assert {r["task"] for r in table["rows"] if r["methods"]["ddpg-normal"]["status"] == "done"} == {
-        "pendulum", "inverted_pendulum"}
+    assert {r["task"] for r in table["rows"] if r["methods"]["ddpg-normal"]["status"] == "done"} == set(TASKS)
 
     # A killed cell's call left no record; the retry resumed it from its checkpoint (its first recorded call
     # is a --resume), and its numbers equal an uninterrupted local run of the same cell.
     resumed = []
-    for task in ("pendulum", "inverted_pendulum"):
-        for method in ("ddpg-paramnoise", "ddpg-normal"):
+    for task in TASKS:
+        for method in METHODS:
             archived = os.path.join(results, "cells", task, method)
             first = json.load(open(os.path.join(archived, "reproduce.json")))["calls"][0]["argv"]
             if "--resume" in first:
