@@ -1,5 +1,5 @@
-"""experiments.reproduce --launcher ray: a tiny two-task grid (one method, two cells) on a local Ray instance that the
-command starts itself, with every cell's worker killed once mid-run: Ray retries the cells, each
+"""experiments.reproduce --launcher ray: a tiny two-task grid (one method, two cells) on a local Ray instance
+that the command starts itself, with every cell's worker killed once mid-run: Ray retries the cells, each
 resumes from its last checkpoint, and the archive holds the numbers of an uninterrupted local run."""
 
 import json
