@@ -183,7 +183,8 @@ def reproduce_args(a: argparse.Namespace) -> argparse.Namespace:
 
 @functools.lru_cache(maxsize=None)
 def _options(task: str, name: str, physics: str) -> tuple[str, ...] | None:
-    """``_variant_options``, cached: ``same_as`` compares every earlier variant's options on the task."""
+    """The variant's ``experiments.run`` options on ``task`` (None where its change is the task's preset already),
+    cached: ``same_as`` compares every earlier variant's options on the task."""
     from metapg_jax.config import make_config
 
     v = VARIANTS[name]
@@ -191,11 +192,6 @@ def _options(task: str, name: str, physics: str) -> tuple[str, ...] | None:
     if sets is None:
         return None
     return (*v.method, *(x for s in sets for x in ("--set", s)))
-
-
-def _variant_options(task: str, name: str, physics: str) -> list[str] | None:
-    options = _options(task, name, physics)
-    return None if options is None else list(options)
 
 
 def same_as(task: str, name: str, physics: str) -> str | None:
@@ -215,7 +211,7 @@ def same_as(task: str, name: str, physics: str) -> str | None:
 def cell_options(task: str, name: str, physics: str) -> list[str] | None:
     """The variant's ``experiments.run`` options on ``task``; None where it has no cell of its own there
     (``same_as``)."""
-    return None if same_as(task, name, physics) is not None else _variant_options(task, name, physics)
+    return None if same_as(task, name, physics) is not None else list(_options(task, name, physics))
 
 
 def plan(a: argparse.Namespace) -> list[tuple[str, str, list[str]]]:
