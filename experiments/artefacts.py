@@ -23,6 +23,9 @@ from that archive, and writes, under the results folder:
 * ``comparisons.md`` / ``.json``: every method against every other per task (medians, ranges, best
   seed means, differences, Welch p, at how many evaluations one seed-mean curve is above the other):
   the numbers docs/results.md quotes beyond Table 2;
+* ``behaviour.md`` / ``.json``: what the explorer put in the buffer per finished cell (the return of
+  the exploration episodes and, for a teacher, its log-std, its distance to the student and the meta
+  reward; first chunk vs final window);
 * ``teacher_designs_idp.png``: independent vs variance teacher vs DDPG on
   InvertedDoublePendulum (Figure 2);
 * ``visitation_<task>.png``: states visited by the teacher, the student and
@@ -38,7 +41,7 @@ Definitions (final return, ±, CI, p; also written into the files): ``experiment
 
 Layout: ``experiments.grid`` (tasks, methods, baselines), ``experiments.stats`` (statistics and
 number formatting), ``experiments.cells`` (reading run folders, the committed archive,
-provenance), ``experiments.tables`` (Table 2, steps to threshold, comparisons, README.md),
+provenance), ``experiments.tables`` (Table 2, steps to threshold, comparisons, behaviour, README.md),
 ``experiments.figures`` (curves, teacher designs, visitation); this module rebuilds everything
 (``build_all``) and is the command line.
 """
@@ -89,6 +92,8 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
                                              out_dir, footer, preset, build["commit"], student=student)
     files += tables.write_comparisons(tables.comparison_rows(results, tasks, methods), out_dir, footer, preset,
                                       build["commit"], student=student)
+    files += tables.write_behaviour(tables.behaviour_rows(results, tasks, methods), out_dir, footer, preset,
+                                    build["commit"], student=student)
     files += figures.write_teacher_designs(results, out_dir, build, preset, student=student)
     for stale in glob.glob(os.path.join(out_dir, "visitation_*.png")):  # only what this build draws stays
         os.remove(stale)

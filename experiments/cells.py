@@ -20,6 +20,12 @@ from metapg_jax import reporting
 
 # ---------------------------------------------------------------------------------------------- loading
 
+# Per-chunk metrics about the data the explorer put in the buffer, kept next to the evaluation curves
+# where a run logged them (tables.behaviour_rows): the return of the exploration episodes (DDPG's noisy
+# or perturbed student; Meta's teacher collecting D0) and, for a teacher, its log-std, its distance to
+# the student's action on D0 and the meta reward.
+BEHAVIOUR_METRICS = ("train_return", "teacher_log_std", "teacher_student_distance", "meta_reward")
+
 @dataclasses.dataclass
 class RunResult:
     """One grid cell's stored results (a run folder, finished or not)."""
@@ -37,6 +43,7 @@ class RunResult:
     values: np.ndarray        # (seeds, T) evaluation returns
     train_seconds: float | None = None  # training time over all calls, from metrics.jsonl (reporting.training_seconds)
     train_seconds_exact: bool = False
+    behaviour: dict = dataclasses.field(default_factory=dict)  # BEHAVIOUR_METRICS key -> (seeds, T), where logged
 
     @property
     def num_seeds(self) -> int:
@@ -65,6 +72,7 @@ def load_run(path: str, task: str = "", method: str = "") -> RunResult | None:
     if not rows:
         return None
     steps, values = reporting.curves(rows)
+    behaviour = {k: np.asarray(reporting.curves(rows, k)[1], np.float64) for k in BEHAVIOUR_METRICS if k in rows[0]}
     train_s, exact = reporting.training_seconds(rows)
     summary = read_json(os.path.join(path, "summary.json"))
     info = {k: v for k, v in stored.items() if k not in ("config", "run_args")}
@@ -72,7 +80,8 @@ def load_run(path: str, task: str = "", method: str = "") -> RunResult | None:
                      complete=bool(summary), config=stored["config"], run_args=stored["run_args"], info=info,
                      summary=summary, provenance=read_json(os.path.join(path, "reproduce.json")),
                      steps=np.asarray(steps), values=np.asarray(values, np.float64),
-                     train_seconds=None if train_s is None else round(train_s, 2), train_seconds_exact=exact)
+                     train_seconds=None if train_s is None else round(train_s, 2), train_seconds_exact=exact,
+                     behaviour=behaviour)
 
 
 def read_json(path: str) -> dict:

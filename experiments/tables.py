@@ -1,7 +1,7 @@
 """The tables of the artefacts, from stored cells (``experiments.cells``): the paper's Table 2
 (``table2.md`` / ``.json`` / ``_per_seed.csv``), samples to reach the DDPG baseline's best
-(``steps_to_threshold.csv`` / ``.md``), every method against every other (``comparisons.md`` / ``.json``)
-and the results folder's ``README.md``; the paper's Table 2 numbers they are shown next to.
+(``steps_to_threshold.csv`` / ``.md``), every method against every other (``comparisons.md`` / ``.json``),
+what the explorer put in the buffer (``behaviour.md`` / ``.json``) and the results folder's ``README.md``; the paper's Table 2 numbers they are shown next to.
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ import csv
 import json
 import math
 import os
+import warnings
 from typing import Iterable, Sequence
 
 import numpy as np
@@ -362,6 +363,84 @@ def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
     return paths
 
 
+# ---------------------------------------------------------------------------------------------- behaviour
+
+BEHAVIOUR_COLUMNS = (("train_return", "exploration-episode return"), ("teacher_log_std", "teacher log-std"),
+                     ("teacher_student_distance", "teacher-student distance"), ("meta_reward", "meta reward"))
+
+
+def _seed_mean_first_final(values: np.ndarray) -> dict:
+    """A behaviour metric's (seeds, T) chunks: the seed mean of the first chunk, and the seeds' mean and std
+    of the final window (the final return's: the last max(1, floor(T/10)) chunks); NaN (a chunk where no
+    exploration episode ended) is left out of every mean."""
+    k = num_final_evaluations(values.shape[1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN column is reported as n/a
+        final = np.nanmean(values[:, -k:], axis=1)
+        final = final[np.isfinite(final)]
+        mean, std = mean_std(final)
+        return {"first": float(np.nanmean(values[:, 0])), "final_mean": mean, "final_std": std,
+                "final_seeds": int(final.size)}
+
+
+def behaviour_rows(results: dict, tasks: Sequence[str], methods: Sequence[str]) -> list[dict]:
+    """What the explorer put in the buffer, per finished cell that logged it (``cells.BEHAVIOUR_METRICS``):
+    the return of the exploration episodes (DDPG: the noisy or perturbed student; Meta: the teacher's D0)
+    and, for a teacher, its log-std, its RMS distance to the student's action on D0 and the meta reward,
+    each at the first chunk and over the final window (``_seed_mean_first_final``); the final evaluation
+    return of the same cell for reference."""
+    rows = []
+    for task in tasks:
+        for m in methods:
+            r = results.get((task, m))
+            if r is None or not r.complete or not r.behaviour:
+                continue
+            rows.append({"task": task, "method": m, "n": r.num_seeds, "budget": r.budget,
+                         "eval_final": float(r.final().mean()),
+                         **{k: _seed_mean_first_final(r.behaviour[k]) for k, _ in BEHAVIOUR_COLUMNS
+                            if k in r.behaviour}})
+    return rows
+
+
+def write_behaviour(rows: list[dict], out_dir: str, footer: str, preset: str, build_commit: str | None = None,
+                    student: str = "ddpg") -> list[str]:
+    """behaviour.md and behaviour.json from ``behaviour_rows``; returns the paths."""
+    paths = [os.path.join(out_dir, "behaviour.md"), os.path.join(out_dir, "behaviour.json")]
+    md = [f"# What the explorer put in the buffer ({grid_label(preset, student)})", "",
+          "From the per-chunk training metrics of the finished cells (`metrics.jsonl`), next to the final "
+          "evaluation return:", "",
+          "- exploration-episode return: the mean return of the episodes that ended during a chunk's exploration "
+          "rollouts: DDPG's student with its noise (Gaussian, OU) or perturbed weights (param noise); Meta's "
+          "teacher collecting D0 (D1, the student's deterministic rollouts that also go to the buffer, is not "
+          "counted). Chunks in which no episode ended are left out.",
+          "- teacher log-std: the mean over D0's states and action dimensions; teacher-student distance: the RMS "
+          "difference between the teacher's action and the student's deterministic action on D0's states "
+          "(actions in [-1, 1]); meta reward: R_hat(pi') - R_hat(pi) (Algorithm 1).",
+          "- first: the seed mean of the first chunk (the first evaluation interval); final: mean ± std over "
+          "seeds of each seed's mean over the final return's window (the last max(1, floor(T/10)) chunks)."]
+    for task in dict.fromkeys(r["task"] for r in rows):
+        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
+               "| method | seeds | final evaluation return | " +
+               " | ".join(f"{label}, first | {label}, final" for _, label in BEHAVIOUR_COLUMNS) + " |",
+               "|---|---|---|" + "---|---|" * len(BEHAVIOUR_COLUMNS)]
+        for r in (r for r in rows if r["task"] == task):
+            cols = []
+            for k, _ in BEHAVIOUR_COLUMNS:
+                v = r.get(k)
+                cols += ["–", "–"] if v is None else [fmt(v["first"]), f"{fmt(v['final_mean'])} ± {fmt(v['final_std'])}"]
+            md.append(f"| {METHOD_NAMES.get(r['method'], r['method'])} | {r['n']} | {fmt(r['eval_final'])} | "
+                      + " | ".join(cols) + " |")
+    if not rows:
+        md += ["", "(no finished cell logged its exploration metrics)"]
+    md.append(footer)
+    with open(paths[0], "w") as f:
+        f.write("\n".join(md))
+    with open(paths[1], "w") as f:
+        json.dump({"preset": preset, **({} if student == "ddpg" else {"student": student}),
+                   "build_commit": build_commit, "rows": rows}, f, indent=2, default=json_default)
+    return paths
+
+
 # ---------------------------------------------------------------------------------------------- README
 
 def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequence[str], footer: str) -> str:
@@ -390,6 +469,9 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
         "comparisons.md": "every method against every other per task: medians, ranges, best seed means, "
                           "differences, Welch p, at how many evaluations one seed-mean curve is above the other",
         "comparisons.json": "the same, machine-readable",
+        "behaviour.md": "what the explorer put in the buffer per cell: the exploration episodes' return and, for a "
+                        "teacher, its log-std, distance to the student and meta reward, first chunk vs final window",
+        "behaviour.json": "the same, machine-readable",
         "teacher_designs_idp.png": "Figure 2: independent vs variance teacher vs DDPG on InvertedDoublePendulum",
         "manifest.json": "provenance: commit, machine, and per cell config, seeds, budget, wall time",
     }
