@@ -1,7 +1,8 @@
 """The tables of the artefacts, from stored cells (``experiments.cells``): the paper's Table 2
 (``table2.md`` / ``.json`` / ``_per_seed.csv``), samples to reach the DDPG baseline's best
 (``steps_to_threshold.csv`` / ``.md``), every method against every other (``comparisons.md`` / ``.json``),
-what the explorer put in the buffer (``behaviour.md`` / ``.json``) and the results folder's ``README.md``; the paper's Table 2 numbers they are shown next to.
+what the explorer put in the buffer (``behaviour.md`` / ``.json``) and the results folder's ``README.md``;
+the paper's Table 2 numbers they are shown next to.
 """
 
 from __future__ import annotations
@@ -15,11 +16,12 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from experiments.cells import RunResult, cell_provenance
+from experiments.cells import BEHAVIOUR_METRICS, RunResult, cell_provenance
 from experiments.grid import (BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for, grid_label, noise_methods,
                              STUDENT_NAMES)
-from experiments.stats import (FINAL_DEFINITION, first_step_reaching, fmt, fmt_p, mean_std, num_final_evaluations,
-                               stats_definition, t_interval, verdict, welch_difference, welch_test)
+from experiments.stats import (FINAL_DEFINITION, final_returns, first_step_reaching, fmt, fmt_p, mean_std,
+                               num_final_evaluations, stats_definition, t_interval, verdict, welch_difference,
+                               welch_test)
 
 # The paper's Table 2 (Xu et al., 2018): final return mean ± std, Meta vs DDPG; 3 seeds, gym v1 tasks.
 PAPER_TABLE2 = {
@@ -31,6 +33,15 @@ PAPER_TABLE2 = {
     "reacher": {"meta": (-12.16, 1.19), "ddpg": (-11.67, 3.39)},
 }
 PAPER_SEEDS = 3
+
+
+def _write_md_and_json(md_path: str, md: list[str], json_path: str, preset: str, student: str, payload: dict) -> None:
+    """An artefact's Markdown lines and its JSON twin, which opens with the grid (preset; student if not DDPG)."""
+    with open(md_path, "w") as f:
+        f.write("\n".join(md))
+    with open(json_path, "w") as f:
+        json.dump({"preset": preset, **({} if student == "ddpg" else {"student": student}), **payload}, f,
+                  indent=2, default=json_default)
 
 
 # ---------------------------------------------------------------------------------------------- Table 2
@@ -190,13 +201,9 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
                   f"{fmt(v['difference'])} | {ci} | {fmt_p(v['p'])} | {v['verdict']} |")
     md.append(footer)
     paths = [os.path.join(out_dir, n) for n in ("table2.md", "table2.json", "table2_per_seed.csv")]
-    with open(paths[0], "w") as f:
-        f.write("\n".join(md))
-    with open(paths[1], "w") as f:
-        json.dump({"preset": preset, **({} if student == "ddpg" else {"student": student}),
-                   "baseline": baseline, "final_definition": FINAL_DEFINITION,
-                   "statistics": stats_definition(baseline),
-                   "paper_seeds": PAPER_SEEDS, "rows": rows}, f, indent=2, default=json_default)
+    _write_md_and_json(paths[0], md, paths[1], preset, student,
+                       {"baseline": baseline, "final_definition": FINAL_DEFINITION,
+                        "statistics": stats_definition(baseline), "paper_seeds": PAPER_SEEDS, "rows": rows})
     with open(paths[2], "w", newline="") as f:
         w = csv.writer(f)
         # seed_index i is the run's seed i: PRNG key fold_in(PRNGKey(base_seed), i).
@@ -354,29 +361,24 @@ def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
     if not comparisons["methods"]:
         md += ["", "(no finished cell is stored)"]
     md.append(footer)
-    with open(paths[0], "w") as f:
-        f.write("\n".join(md))
-    with open(paths[1], "w") as f:
-        json.dump({"preset": preset, **({} if student == "ddpg" else {"student": student}),
-                   "final_definition": FINAL_DEFINITION, "build_commit": build_commit,
-                   **comparisons}, f, indent=2, default=json_default)
+    _write_md_and_json(paths[0], md, paths[1], preset, student,
+                       {"final_definition": FINAL_DEFINITION, "build_commit": build_commit, **comparisons})
     return paths
 
 
 # ---------------------------------------------------------------------------------------------- behaviour
 
-BEHAVIOUR_COLUMNS = (("train_return", "exploration-episode return"), ("teacher_log_std", "teacher log-std"),
-                     ("teacher_student_distance", "teacher-student distance"), ("meta_reward", "meta reward"))
+BEHAVIOUR_COLUMNS = tuple(zip(BEHAVIOUR_METRICS, ("exploration-episode return", "teacher log-std",
+                                                  "teacher-student distance", "meta reward")))
 
 
 def _seed_mean_first_final(values: np.ndarray) -> dict:
     """A behaviour metric's (seeds, T) chunks: the seed mean of the first chunk, and the seeds' mean and std
     of the final window (the final return's: the last max(1, floor(T/10)) chunks); NaN (a chunk where no
     exploration episode ended) is left out of every mean."""
-    k = num_final_evaluations(values.shape[1])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN column is reported as n/a
-        final = np.nanmean(values[:, -k:], axis=1)
+        final = final_returns(values)
         final = final[np.isfinite(final)]
         mean, std = mean_std(final)
         return {"first": float(np.nanmean(values[:, 0])), "final_mean": mean, "final_std": std,
@@ -433,11 +435,7 @@ def write_behaviour(rows: list[dict], out_dir: str, footer: str, preset: str, bu
     if not rows:
         md += ["", "(no finished cell logged its exploration metrics)"]
     md.append(footer)
-    with open(paths[0], "w") as f:
-        f.write("\n".join(md))
-    with open(paths[1], "w") as f:
-        json.dump({"preset": preset, **({} if student == "ddpg" else {"student": student}),
-                   "build_commit": build_commit, "rows": rows}, f, indent=2, default=json_default)
+    _write_md_and_json(paths[0], md, paths[1], preset, student, {"build_commit": build_commit, "rows": rows})
     return paths
 
 
