@@ -62,6 +62,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import warnings
 from typing import Callable, Dict, Tuple
 
@@ -125,6 +126,28 @@ def _linesearch_loop(early_exit: bool):
         _mjx_solver._while_loop_scan = stock
 
 
+_SETTOTALMASS = re.compile(r'\s+settotalmass="([^"]+)"')
+
+
+def load_model(path: str) -> mujoco.MjModel:
+    """Compiles a gymnasium XML file, the way MuJoCo's deprecation warning for the compiler attribute
+    ``settotalmass`` asks (HalfCheetah's model has ``settotalmass="14"``): the attribute is taken out and
+    ``mj_setTotalmass`` and ``mj_setConst`` are applied to the compiled model. Every array of the model
+    equals the one compiled from the file as it is, bit for bit (checked on HalfCheetah with MuJoCo
+    4.0.1; tests/test_envs_mujoco.py compares them), and MuJoCo writes no warning, so no
+    ``MUJOCO_LOG.TXT`` lands in the working directory. Other files are compiled as they are."""
+    with open(path) as f:
+        xml = f.read()
+    found = _SETTOTALMASS.search(xml)
+    if found is None:
+        return mujoco.MjModel.from_xml_path(path)
+    # Compiled from a string: gymnasium's five task models name no other files (meshes, includes).
+    model = mujoco.MjModel.from_xml_string(_SETTOTALMASS.sub("", xml, count=1))
+    mujoco.mj_setTotalmass(model, float(found.group(1)))
+    mujoco.mj_setConst(model, mujoco.MjData(model))
+    return model
+
+
 def gymnasium_asset_path(xml_file: str) -> str:
     """Path of an XML file as gymnasium's ``expand_model_path`` resolves it."""
     if xml_file.startswith((".", "/")):
@@ -175,7 +198,7 @@ class GymMujocoEnv(Env):
     def __init__(self, xml_file: str, frame_skip: int, early_exit_linesearch: bool = True):
         # See the module docstring ("Speed"); False gives MJX's stock line search.
         self.early_exit_linesearch = bool(early_exit_linesearch)
-        self.mj_model = mujoco.MjModel.from_xml_path(gymnasium_asset_path(xml_file))
+        self.mj_model = load_model(gymnasium_asset_path(xml_file))
         self.mjx_model = mjx.put_model(self.mj_model)
         # A template mjx.Data (as after gymnasium's mj_resetData) that reset
         # fills in; built once here so reset does no host-side work.

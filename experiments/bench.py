@@ -6,6 +6,7 @@
     python -m experiments.bench --envs hopper,halfcheetah --physics mjx,mujoco --presets paper --seeds 8
     python -m experiments.bench --env-speed           # env stepping alone: MJX, the C engine, its limits
     python -m experiments.bench --sweep               # a 32-setting sweep as one program vs 32 separate runs
+    python -m experiments.bench --main-job            # the README's main job: cold compile, first 60k steps
 
 For every (task, method, preset, seeds) it runs a fresh subprocess (so peak
 memory and compile caches are its own) that measures, in one process:
@@ -43,7 +44,9 @@ import sys
 import time
 
 BENCH_DIR = "results/benchmarks"  # where the records go by default (relative to the repository root)
-TARGETS = {"overhead": 1.2, "scaling_8": 2.5, "compile_s": 60.0, "rss_over_buffer": 2.0}
+TARGETS = {"overhead": 1.2, "scaling_8": 2.5, "compile_s": 60.0, "rss_over_buffer": 2.0,
+           "main_job_compile_s": 30.0}  # the README's main job on its default engine, cold, on a 2-core CPU
+MAIN_JOB = ["--env=inverted_double_pendulum", "--seeds=8"]  # the README's first command
 
 
 def _rss_mib() -> float:
@@ -469,6 +472,54 @@ def sweep_markdown(r: dict, meta: dict) -> str:
         f"compiling afresh, {r['one_run_of_each_chunk_ratio']:.1f}x."])
 
 
+def measure_main_job(physics: str, steps: int) -> dict:
+    """The README's main job (``MAIN_JOB``) run as a user runs it, in a fresh subprocess, cut at ``steps``
+    env steps per seed: its cold compile (no persistent compile cache) and its env steps/s over those
+    steps (all seeds, evaluations included), from the run's own summary.json. ``physics``: the
+    ``--physics`` value ('default' passes none: the command exactly as the README gives it)."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "run")
+        argv = [sys.executable, "-m", "experiments.run", *MAIN_JOB, f"--steps={steps}", "--compile-cache=off",
+                "--quiet", "--no-plot", f"--out={out}"] + ([] if physics == "default" else [f"--physics={physics}"])
+        t = time.perf_counter()
+        res = subprocess.run(argv, capture_output=True, text=True)
+        wall = time.perf_counter() - t
+        if res.returncode != 0:
+            raise RuntimeError(f"main job ({physics}) failed: {res.stderr[-2000:]}")
+        with open(os.path.join(out, "summary.json")) as f:
+            summary = json.load(f)
+    return {"physics_flag": physics, "physics": summary["physics"], "steps_per_seed": steps,
+            "seeds": summary["num_seeds"], "compile_s": summary["compile_seconds"],
+            "train_s": summary["train_seconds"], "steps_per_s_total": summary["env_steps_per_second_total"],
+            "wall_s": round(wall, 1), "peak_rss_mib": summary["peak_rss_mib"]}
+
+
+def main_job_markdown(rows: list[dict], meta: dict) -> str:
+    target = TARGETS["main_job_compile_s"]
+    lines = [f"## The main job ({meta['date']}, {meta['machine']}, JAX {meta['jax']}, {meta['backend']})", "",
+             f"`python -m experiments.bench --main-job`: `python -m experiments.run {' '.join(MAIN_JOB)}` in a fresh "
+             f"process with no compile cache, cut at {rows[0]['steps_per_seed']:,} env steps per seed; one run per "
+             f"engine, one after the other. Compile: the cold compile the run prints; rate: env steps per second over "
+             f"all seeds (evaluations included) from its summary.json. Target: the default engine compiles in "
+             f"<= {target:.0f} s on a 2-core CPU. Raw numbers: `{meta['json']}`.", "",
+             "| --physics | engine | compile (s) | env steps/s total | train (s) | whole command (s) | peak RSS (MiB) |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['physics_flag']} | {r['physics']} | {r['compile_s']:.1f} | {r['steps_per_s_total']:,.0f} | "
+                     f"{r['train_s']:.1f} | {r['wall_s']:.1f} | {r['peak_rss_mib']:,.0f} |")
+    default = next((r for r in rows if r["physics_flag"] == "default"), None)
+    if default is not None:
+        verdict = "met" if default["compile_s"] <= target else "missed"
+        lines += ["", f"Default engine ({default['physics']}): compile {default['compile_s']:.1f} s, target {verdict}."]
+        mjx = next((r for r in rows if r["physics"] == "mjx" and r is not default), None)
+        if mjx is not None and default["physics"] != "mjx":
+            lines.append(f"Against MJX in the same run: compile {mjx['compile_s'] / default['compile_s']:.1f}x faster, "
+                         f"training {default['steps_per_s_total'] / mjx['steps_per_s_total']:.1f}x faster.")
+    return "\n".join(lines)
+
+
 def write_section(path: str, name: str, text: str) -> None:
     """Replaces the generated section ``name`` of ``path`` (between marker comments), keeping
     everything else in the file (the hand-written analysis); appends it if it is not there."""
@@ -615,6 +666,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--sweep", action="store_true",
                    help="a 32-setting sweep as one program vs 32 separate runs (the first --envs task, default "
                         "pendulum; the first --seeds value per setting, default 1)")
+    p.add_argument("--main-job", action="store_true",
+                   help="the README's main job as a user runs it (fresh process, no compile cache), cut at "
+                        "--main-job-steps: cold compile and env steps/s on the default engine and on MJX")
+    p.add_argument("--main-job-steps", type=int, default=60_000, help="env steps per seed of --main-job (default 60000)")
+    p.add_argument("--main-job-physics", default="default,mjx",
+                   help="comma-separated --physics values of --main-job ('default' passes none; default: default,mjx)")
     p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
     args = p.parse_args(argv)
     if args.one:
@@ -653,6 +710,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.target_steps is not None and args.target_steps <= 0:
         print(f"error: --target-steps must be positive, got {args.target_steps}", file=sys.stderr)
         return 2
+    if args.main_job_steps <= 0:
+        print(f"error: --main-job-steps must be positive, got {args.main_job_steps}", file=sys.stderr)
+        return 2
+    try:
+        parse_list(args.main_job_physics, ("default", *envs.PHYSICS_CHOICES), "physics")
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     import jax
 
     from metapg_jax import reporting
@@ -671,6 +736,17 @@ def main(argv: list[str] | None = None) -> int:
         reporting.write_json_atomic(json_path, {"meta": meta, "sweep": r})
         write_section(args.out, "sweep", sweep_markdown(r, meta))
         print(sweep_markdown(r, meta).splitlines()[-1], flush=True)
+        return 0
+    if args.main_job:
+        json_path = args.json or os.path.join(BENCH_DIR, "benchmarks_main_job.json")
+        meta["json"] = json_path
+        rows = []
+        for ph in args.main_job_physics.split(","):
+            print(f"main job, --physics={ph} ...", flush=True)
+            rows.append(measure_main_job(ph, args.main_job_steps))
+            print(main_job_markdown(rows, meta).splitlines()[-1], flush=True)
+            reporting.write_json_atomic(json_path, {"meta": meta, "rows": rows})
+            write_section(args.out, "main-job", main_job_markdown(rows, meta))
         return 0
     if args.env_speed:
         results = []

@@ -37,7 +37,7 @@ curves, steps-to-threshold, the teacher-design and state-visitation figures,
 <preset>`` for a preset other than ``paper``) from whatever is stored.
 
 Exit status: 0 every requested cell finished; 2 bad input; 3 some cell stopped
-on non-finite parameters (the others still ran); 130 interrupted (artefacts
+on non-finite parameters (the others still ran); 130 interrupted (143 by SIGTERM) (artefacts
 are still rebuilt from what is stored; run the same command again to resume).
 """
 
@@ -171,7 +171,7 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
     options = METHODS[method] if options is None else options
     argv = [f"--env={task}", *options, f"--preset={args.preset}", f"--seeds={args.seeds}",
             f"--seed={args.seed}", f"--source={args.source}"]
-    if args.physics != "mjx" and task != "pendulum":
+    if task != "pendulum":  # named always: experiments.run's own default, 'auto', depends on the backend
         argv.append(f"--physics={args.physics}")
     if args.student != "ddpg":
         argv.append(f"--student={args.student}")
@@ -266,8 +266,12 @@ def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[st
                     f"to extend it from is stored; delete it to rerun)")
         else:
             note = f" (stored budget {s['env_steps']:,} is above the requested {wanted:,}; delete it to rerun)"
-        message = (f"done, skipped: final eval return {s['final_eval_return_mean']:.1f} ± "
-                   f"{s['final_eval_return_std']:.1f} over {s['num_seeds']} seeds, {s['env_steps']:,} steps{note}")
+        from experiments import stats
+        from metapg_jax import reporting
+
+        # From the metrics (the tables' definition), also for a cell stored before summary.json had it.
+        final = stats.run_summary(*reporting.curves(reporting.read_jsonl(os.path.join(out, "metrics.jsonl"))))
+        message = f"done, skipped: {stats.describe_final(final)}, {s['env_steps']:,} steps{note}"
         return {"state": state, "out": out, "archived": archived, "argv": None, "message": message}
     argv = cell_argv(args, task, method, out, state, options)
     verb = f"extending from {s['env_steps']:,} to {wanted:,} steps" if state == "extend" else \
@@ -316,9 +320,9 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
         if code == 0 and os.path.exists(os.path.join(plan["archived"], "summary.json")):
             print(f"{tag}: finished; results archived in {plan['archived']}", flush=True)
         report[(task, method)] = outcome(plan, code)
-        if code == 130:
+        if code in (130, 143):  # Ctrl-C or SIGTERM: the grid stops too
             print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
-            return 130, report
+            return code, report
         if code == 2:
             print(f"{tag}: bad options (exit 2); stopping the grid", file=sys.stderr, flush=True)
             return 2, report

@@ -10,7 +10,7 @@ teacher) in one compiled program.
     python -m experiments.run --resume runs/hopper-meta-modern-s0 --steps=990000   # extend the budget
 
 Writes under ``--out`` (default ``runs/<env>-<method>-<preset>-s<seed>``, ``...-<preset>-mujoco-s<seed>``
-with ``--physics=mujoco``):
+on MuJoCo's C engine, which ``--physics=auto``, the default, picks for a MuJoCo task on a CPU):
 ``config.json``, ``metrics.jsonl`` (one line per seed per evaluation, appended
 as the run goes), ``cycles.jsonl`` (meta: per-cycle teacher metrics per seed),
 ``checkpoints/`` (the whole state, the last 2), ``learning_curve.png`` (mean ±
@@ -35,7 +35,9 @@ then holds the new budget and an ``extensions`` list; the shorter run's summary 
 Exit status: 0 done; 2 bad input (one ``error:`` line, before anything
 compiles); 3 non-finite parameters (the run stops, the last good checkpoint
 stays); 130 interrupted by Ctrl-C (after finishing and checkpointing the chunk
-in flight; ``--resume`` continues).
+in flight; ``--resume`` continues; a second Ctrl-C stops at once, as SIGTERM does); 143 stopped by
+SIGTERM (at once: the chunk in flight is lost, the last checkpoint stays). A run stopped before its
+first checkpoint says so in one line, with the command that starts it again.
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ TEACHER_CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_
                          "teacher_entropy", "teacher_student_distance")
 # Arguments that define the run; stored in config.json so --resume can rebuild and compare it.
 RUN_ARGS = {"env": "pendulum", "method": "meta", "teacher": None, "preset": "paper", "noise": None,
-            "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "mjx",
+            "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "auto",
             "student": "ddpg", "overrides": [], "plugins": []}
 
 
@@ -92,9 +94,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="stored env steps per seed (default: the paper's budget for the task)")
     p.add_argument("--source", default=None, help="MuJoCo models: 'gymnasium' (v5; default) or 'brax' (MJX only)")
     p.add_argument("--physics", default=None,
-                   help="engine of the MuJoCo tasks: 'mjx' (JAX; default, the one for accelerators) or "
-                        "'mujoco' (MuJoCo's C engine inside the program: float64, gymnasium's numbers, "
-                        "several times faster on CPU; runs on the host CPU)")
+                   help="engine of the MuJoCo tasks: 'auto' (default: 'mujoco' where JAX runs on the CPU, "
+                        "'mjx' on accelerators and for --source=brax), 'mjx' (JAX, float32; the one for "
+                        "accelerators) or 'mujoco' (MuJoCo's C engine inside the program: float64, gymnasium's "
+                        "numbers, several times faster on a CPU; runs on the host CPU). The resolved engine is "
+                        "stored with the run; --resume keeps it")
     p.add_argument("--set", dest="overrides", action="append", default=None, metavar="GROUP.FIELD=VALUE",
                    help="override any config field, e.g. --set ddpg.tau=0.005 --set run.eval_every=3000 "
                         "(groups: env, run, ddpg, noise, meta; see metapg_jax/config.py)")
@@ -177,7 +181,8 @@ def import_plugins(names: list[str]) -> None:
 
 
 def config_from_run_args(a: dict) -> config_lib.Config:
-    """Builds and validates the config; raises ValueError with one line on bad input."""
+    """Builds and validates the config; raises ValueError with one line on bad input. ``a["physics"]``
+    may be 'auto' (make_config resolves it; ``resolved_run_args`` stores the engine it chose)."""
     import_plugins(a.get("plugins") or [])
     if a["seeds"] <= 0:
         raise ValueError(f"--seeds must be positive, got {a['seeds']}")
@@ -194,6 +199,12 @@ def config_from_run_args(a: dict) -> config_lib.Config:
                                  overrides=parse_overrides(a["overrides"]), physics=a["physics"],
                                  student=a["student"])
     return config_lib.validate(cfg)
+
+
+def resolved_run_args(a: dict, cfg: config_lib.Config) -> dict:
+    """The run args as stored: ``physics`` names the engine the config resolved (never 'auto'), so a
+    resume on another backend keeps the engine the run started on."""
+    return {**a, "physics": cfg.env.physics}
 
 
 def _physics_label(cfg: config_lib.Config) -> str:
@@ -218,6 +229,64 @@ def check_devices(num_seeds: int) -> None:
                          f"use a multiple of {n} (or limit the devices, e.g. CUDA_VISIBLE_DEVICES)")
 
 
+def _available_host_bytes() -> int:
+    """Memory this process can still take: MemAvailable (Linux), else the physical memory."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
+def _gib(n: float) -> str:
+    """Bytes in binary units, e.g. '18.7 GiB', '6.4 PiB'."""
+    for power, unit in ((50, "PiB"), (40, "TiB"), (30, "GiB")):
+        if n >= 2 ** power:
+            return f"{n / 2 ** power:,.1f} {unit}"
+    return f"{n / 2**20:,.0f} MiB"
+
+
+def state_bytes(init, *args) -> int:
+    """Bytes of the state ``init(*args)`` returns, from its shapes alone (``jax.eval_shape``: nothing runs,
+    nothing compiles). ``args`` may be ``jax.ShapeDtypeStruct``s."""
+    import jax
+
+    return sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(jax.eval_shape(init, *args)))
+
+
+def check_fits(nbytes: int, what: str) -> None:
+    """Raises ``ValueError`` (one line: needed vs available) when a training state of ``nbytes`` (all seeds,
+    all processes) cannot fit: on a CPU the state and a checkpoint's copy of it in host memory; on an
+    accelerator the state in its devices' memory (and the checkpoint's copy in host memory)."""
+    import jax
+
+    share = nbytes // jax.process_count()  # each process holds its devices' seeds
+    cpu = jax.default_backend() == "cpu"
+    host_needed, host_available = (2 if cpu else 1) * share, _available_host_bytes()
+    if host_needed > host_available:
+        why = "its training state and a checkpoint's copy of it" if cpu else "a checkpoint's copy of its training state"
+        raise ValueError(f"{what} needs about {_gib(host_needed)} of memory ({why}); this machine has "
+                         f"{_gib(host_available)} available: use fewer seeds or a smaller replay buffer "
+                         f"(--set run.buffer_size=N)")
+    if not cpu:
+        limits = [(d.memory_stats() or {}).get("bytes_limit") for d in jax.local_devices()]
+        if all(limits) and share > sum(limits):
+            raise ValueError(f"{what} needs about {_gib(share)} of device memory for its training state; the "
+                             f"{len(limits)} {jax.default_backend()} device(s) have {_gib(sum(limits))}: use fewer "
+                             f"seeds or a smaller replay buffer (--set run.buffer_size=N)")
+
+
+def abstract_keys(num_seeds: int):
+    """The shape of ``seed_keys(seed, num_seeds)``, without making them."""
+    import jax
+
+    key = jax.eval_shape(jax.random.PRNGKey, 0)
+    return jax.ShapeDtypeStruct((num_seeds, *key.shape), key.dtype)
+
+
 def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, bool, int | None]:
     """Everything that can fail on user input, before anything compiles: (config, run args, out, resume,
     the stored budget when the resume extends it, else None)."""
@@ -237,8 +306,11 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
             stored = json.load(f)
         if args.out is not None and os.path.abspath(args.out) != os.path.abspath(out):
             raise ValueError("--out and --resume name different folders; a resumed run writes into its own folder")
-        a = run_args(args, stored["run_args"])
+        # A run stored before --physics existed ran on its config's engine (MJX, the default then).
+        stored_args = {"physics": stored["config"]["env"].get("physics", "mjx"), **stored["run_args"]}
+        a = run_args(args, stored_args)
         cfg = config_from_run_args(a)
+        a = resolved_run_args(a, cfg)
         old_steps, new_steps = stored["config"]["run"]["total_steps"], cfg.run.total_steps
         if new_steps != old_steps:
             if new_steps < old_steps:
@@ -255,6 +327,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
                                      f"{stored_every:,} or start a new run")
                 a = {**a, "overrides": list(a["overrides"]) + [f"run.eval_every={stored_every}"]}
                 cfg = config_from_run_args(a)
+                a = resolved_run_args(a, cfg)
         # An extension changes the budget only (see the module docstring).
         # (Read back through from_dict: fields newer than the stored run compare as their defaults.)
         stored_cfg = config_lib.to_dict(config_lib.from_dict(stored["config"]))
@@ -274,6 +347,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
     else:
         a = run_args(args)
         cfg = config_from_run_args(a)
+        a = resolved_run_args(a, cfg)
         engine = "-mujoco" if cfg.env.physics == "mujoco" else ""
         student = "" if cfg.student == "ddpg" else f"-{cfg.student}"
         out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}{student}-{cfg.preset}{engine}"
@@ -297,13 +371,23 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     compile_cache.enable(cache)
+    from metapg_jax.train import make_train, vmap_seeds
+
+    try:
+        trainer = make_train(cfg)
+        check_fits(state_bytes(vmap_seeds(trainer.init), abstract_keys(a["seeds"])),
+                   f"--seeds={a['seeds']} of {run_label(cfg)} with a replay buffer of {cfg.buffer_capacity:,}")
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     if args.debug_nans:
         import jax
 
         jax.config.update("jax_debug_nans", True)
-    return run(cfg, a, out, resume=resume, overwrite=args.overwrite, plot=not args.no_plot, quiet=args.quiet,
+    return run(cfg, a, out, trainer=trainer, resume=resume, overwrite=args.overwrite, plot=not args.no_plot, quiet=args.quiet,
                checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes,
-               extend_from=extend_from, tensorboard=args.tensorboard)
+               extend_from=extend_from, tensorboard=args.tensorboard,
+               restart=restart_command("experiments.run", argv))
 
 
 def _maybe_initialize_distributed() -> None:
@@ -330,32 +414,108 @@ def _maybe_initialize_distributed() -> None:
     jax.distributed.initialize(**kwargs)
 
 
-class _Interrupt:
-    """Ctrl-C sets a flag; the loop finishes the chunk in flight, checkpoints and exits."""
+class Stopped(Exception):
+    """Raised in the host loop by SIGTERM or a second Ctrl-C: stop at once (``Signals``)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.status = 128 + signum  # 130 (SIGINT), 143 (SIGTERM): the shells' convention
+
+
+class Signals:
+    """How a host loop stops. The first Ctrl-C sets ``requested``: the loop finishes the chunk in
+    flight, checkpoints and exits 130. A second Ctrl-C, or SIGTERM, raises ``Stopped`` at once (exit
+    130 / 143): a scheduler that sends SIGTERM may kill the process soon after, and the chunk in flight
+    cannot be saved (the state it started from was donated to it). ``wait`` blocks on a chunk's
+    results in short sleeps, so that a signal is handled while a chunk runs, not only after it."""
 
     def __init__(self):
         self.requested = False
-        self._old = None
+        self._old = {}
+
+    def _handler(self, signum, frame):
+        if signum == signal.SIGINT and not self.requested:
+            self.requested = True
+            print("\ninterrupt: finishing the current chunk, then checkpointing (Ctrl-C again to stop at once)",
+                  file=sys.stderr, flush=True)
+            return
+        raise Stopped(signum)
 
     def __enter__(self):
-        def handler(signum, frame):
-            if self.requested:  # a second Ctrl-C stops at once
-                raise KeyboardInterrupt
-            self.requested = True
-            print("\ninterrupt: finishing the current chunk, then checkpointing (Ctrl-C again to abort)",
-                  file=sys.stderr, flush=True)
-
-        self._old = signal.signal(signal.SIGINT, handler)
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            self._old[signum] = signal.signal(signum, self._handler)
         return self
 
     def __exit__(self, *exc):
-        signal.signal(signal.SIGINT, self._old)
+        for signum, old in self._old.items():
+            signal.signal(signum, old)
         return False
+
+    @staticmethod
+    def wait(tree):
+        """Returns ``tree`` once every array in it is computed (signal handlers run meanwhile)."""
+        import jax
+
+        pause = 1e-3
+        for leaf in jax.tree.leaves(tree):
+            while hasattr(leaf, "is_ready") and not leaf.is_ready():
+                time.sleep(pause)
+                pause = min(2 * pause, 0.05)
+        return tree
+
+
+def stop_message(stop: Stopped, what: str, in_flight: int | None, num_chunks: int, checkpointed: int | None,
+                 every: int, resume_command: str, restart_command: str) -> str:
+    """The one line a host loop prints when ``Stopped``: what is lost and how to go on.
+
+    Args:
+      what: 'the run' or, for a sweep, 'group 2'.
+      in_flight: the 1-based chunk that was running (None: stopped before the first chunk started).
+      checkpointed: the chunks the last checkpoint holds (None: no checkpoint).
+      resume_command / restart_command: how to continue from a checkpoint / start again without one.
+    """
+    who = "Ctrl-C" if stop.signum == signal.SIGINT else stop.args[0]
+    lost = (f"chunk {in_flight} of {num_chunks} was running and is lost" if in_flight is not None
+            else "no chunk had started")
+    if checkpointed:
+        return (f"stopped by {who}: {lost}; {what}'s last checkpoint holds {checkpointed} chunks "
+                f"({checkpointed * every:,} env steps per seed); continue with: {resume_command}")
+    return (f"stopped by {who}: {lost}; nothing of {what} was checkpointed, so it cannot be resumed; start "
+            f"again with: {restart_command}")
+
+
+def restart_command(module: str, argv: list[str] | None) -> str:
+    """The command line that started this process, with ``--overwrite`` (to start again in its folder)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    return " ".join(["python -m", module, *args, *([] if "--overwrite" in args else ["--overwrite"])])
 
 
 def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
         plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0,
-        extend_from: int | None = None, tensorboard: bool = False) -> int:
+        extend_from: int | None = None, tensorboard: bool = False, restart: str | None = None,
+        trainer=None) -> int:
+    """Trains the run (``prepare``'s outputs); returns the exit status. ``restart``: the command that
+    starts it again (printed if it is stopped before its first checkpoint); ``trainer``: the config's
+    (``make_train``), if built already."""
+    with Signals() as signals:
+        try:
+            return _run(signals, cfg, a, out, resume=resume, overwrite=overwrite, plot=plot, quiet=quiet,
+                        checkpoint_every=checkpoint_every, checkpoint_minutes=checkpoint_minutes,
+                        extend_from=extend_from, tensorboard=tensorboard, restart=restart, trainer=trainer)
+        except Stopped as stop:  # before the loop (while compiling): the loop reports its own
+            from metapg_jax.checkpoint import saved_steps
+
+            done = saved_steps(os.path.join(out, "checkpoints"))
+            print("\n" + stop_message(stop, "the run", None, cfg.num_chunks, done[-1] if done else None,
+                                      cfg.run.eval_every, f"python -m experiments.run --resume {out}", restart or ""),
+                  file=sys.stderr, flush=True)
+            return stop.status
+
+
+def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bool, overwrite: bool, plot: bool,
+         quiet: bool, checkpoint_every: int, checkpoint_minutes: float, extend_from: int | None, tensorboard: bool,
+         restart: str | None, trainer) -> int:
     import jax
     import numpy as np
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
@@ -380,7 +540,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
         _record_extension(out, cfg, a, extend_from)
     _barrier("metapg-run-folder")  # process 0 has (re)made the folder before anyone writes into it
 
-    trainer = make_train(cfg)
+    trainer = trainer or make_train(cfg)
     keys = seed_keys(seed, num_seeds)
     name = run_label(cfg)
     print(f"{name} ({cfg.preset} preset, {cfg.env.source} source, {_physics_label(cfg)} physics): {num_seeds} seeds x "
@@ -439,46 +599,52 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
                                   initial=start * cfg.run.eval_every)  # rates: this call's steps only
     last_ckpt = time.perf_counter()
     t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
-    status, chunks_run = 0, 0
+    status, chunks_run, chunk = 0, 0, start
     try:
-        with _Interrupt() as interrupt:
-            for chunk in range(start, cfg.num_chunks):
-                state, metrics = chunk_fn(state)
-                metrics = _to_host(metrics)
-                chunks_run += 1
-                bad = _first_nonfinite(metrics, chunk, cfg)
-                if bad is not None:
-                    seed_i, step = bad
-                    done = checkpointer.steps()
-                    print(f"\nerror: non-finite parameters in seed {seed_i} by env step {step:,} (chunk {chunk}); "
-                          f"run stopped. Last good checkpoint: "
-                          f"{f'after chunk {done[-1]}' if done else 'none'} in {checkpointer.directory}. "
-                          f"Try --debug-nans or a smaller learning rate.", file=sys.stderr, flush=True)
-                    status = 3
-                    break
-                if main_process:
-                    now = time.perf_counter()
-                    rows = reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
-                    metrics_writer.write(rows)
-                    t_chunk = now
-                    cycles = []
-                    if cycle_writer is not None:
-                        cycles = reporting.cycle_rows(metrics, TEACHER_CYCLE_METRICS, chunk * cfg.cycles_per_chunk)
-                        cycle_writer.write(cycles)
-                    if tb_writer is not None:
-                        tb_writer.write(rows, cycles)
-                progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
-                last = chunk + 1 == cfg.num_chunks
-                due = ((chunk + 1 - start) % checkpoint_every == 0) if checkpoint_every else \
-                    (time.perf_counter() - last_ckpt) >= 60 * checkpoint_minutes
-                if last or due or interrupt.requested:
-                    checkpointer.save(chunk + 1, state, ckpt_meta())
-                    last_ckpt = time.perf_counter()
-                if interrupt.requested and not last:
-                    print(f"\ninterrupted: checkpointed after chunk {chunk + 1} of {cfg.num_chunks}; "
-                          f"continue with: python -m experiments.run --resume {out}", file=sys.stderr, flush=True)
-                    status = 130
-                    break
+        for chunk in range(start, cfg.num_chunks):
+            state, metrics = chunk_fn(state)
+            metrics = _to_host(signals.wait(metrics))
+            chunks_run += 1
+            bad = _first_nonfinite(metrics, chunk, cfg)
+            if bad is not None:
+                seed_i, step = bad
+                done = checkpointer.steps()
+                print(f"\nerror: non-finite parameters in seed {seed_i} by env step {step:,} (chunk {chunk}); "
+                      f"run stopped. Last good checkpoint: "
+                      f"{f'after chunk {done[-1]}' if done else 'none'} in {checkpointer.directory}. "
+                      f"Try --debug-nans or a smaller learning rate.", file=sys.stderr, flush=True)
+                status = 3
+                break
+            if main_process:
+                now = time.perf_counter()
+                rows = reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
+                metrics_writer.write(rows)
+                t_chunk = now
+                cycles = []
+                if cycle_writer is not None:
+                    cycles = reporting.cycle_rows(metrics, TEACHER_CYCLE_METRICS, chunk * cfg.cycles_per_chunk)
+                    cycle_writer.write(cycles)
+                if tb_writer is not None:
+                    tb_writer.write(rows, cycles)
+            progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
+            last = chunk + 1 == cfg.num_chunks
+            due = ((chunk + 1 - start) % checkpoint_every == 0) if checkpoint_every else \
+                (time.perf_counter() - last_ckpt) >= 60 * checkpoint_minutes
+            if last or due or signals.requested:
+                checkpointer.save(chunk + 1, state, ckpt_meta())
+                last_ckpt = time.perf_counter()
+            if signals.requested and not last:
+                print(f"\ninterrupted: checkpointed after chunk {chunk + 1} of {cfg.num_chunks}; "
+                      f"continue with: python -m experiments.run --resume {out}", file=sys.stderr, flush=True)
+                status = 130
+                break
+    except Stopped as stop:
+        progress.close()
+        done = checkpointer.steps()
+        print("\n" + stop_message(stop, "the run", chunk + 1, cfg.num_chunks, done[-1] if done else None,
+                                  cfg.run.eval_every, f"python -m experiments.run --resume {out}", restart or ""),
+              file=sys.stderr, flush=True)
+        status = stop.status
     finally:
         progress.close()
         if metrics_writer is not None:
@@ -526,8 +692,10 @@ def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool
     from metapg_jax import reporting
     from metapg_jax.policy import export_policies
 
+    from experiments import stats
+
     rows = reporting.read_jsonl(os.path.join(out, "metrics.jsonl"))
-    summary = reporting.summarize(rows)
+    summary = stats.run_summary(*reporting.curves(rows))
     summary.update({"method": cfg.run.method, "env": cfg.env.name, "preset": cfg.preset, "source": cfg.env.source,
                     "physics": cfg.env.physics,
                     **(extra or {})})
@@ -543,11 +711,9 @@ def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool
 
             plot_teacher(reporting.read_jsonl(os.path.join(out, "cycles.jsonl")),
                          os.path.join(out, "teacher.png"), title)
-    for i, v in enumerate(summary["final_eval_return_per_seed"]):
-        print(f"seed {i}: final eval return {v:.1f}")
-    line = (f"{name}: final eval return {summary['final_eval_return_mean']:.1f} ± "
-            f"{summary['final_eval_return_std']:.1f} (mean ± std over {num_seeds} seeds, "
-            f"{summary['env_steps']:,} env steps)")
+    for i, (v, last) in enumerate(zip(summary["final_return_per_seed"], summary["last_eval_return_per_seed"])):
+        print(f"seed {i}: final return {stats.fmt(v, 1)} (last evaluation {stats.fmt(last, 1)})")
+    line = f"{name}: {stats.describe_final(summary)}, {summary['env_steps']:,} env steps"
     if "env_steps_per_second_total" in summary:
         line += (f"; {summary['env_steps_per_second_total']:,.0f} env steps/s total, "
                  f"compile {summary['compile_seconds']:.1f} s, peak RSS {summary['peak_rss_mib']:,.0f} MiB")

@@ -245,9 +245,9 @@ def run_cells(a: argparse.Namespace, todo: list[tuple[str, str, list[str]]]) -> 
         if p["argv"] is None or a.dry_run:
             continue
         code = reproduce.run_cell(rargs, task, name, p)
-        if code == 130:
+        if code in (130, 143):  # Ctrl-C or SIGTERM
             print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
-            return 130
+            return code
         if code:
             print(f"{tag}: stopped with exit {code}; continuing", file=sys.stderr, flush=True)
             status = status or code

@@ -48,6 +48,43 @@ def final_returns(values: np.ndarray, fraction: float = 0.1) -> np.ndarray:
     return np.nanmean(values[:, -k:], axis=1)
 
 
+def _number(x: float) -> float | None:
+    """A JSON number: None for NaN and infinities (a seed without a finite evaluation)."""
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def run_summary(steps: np.ndarray, values: np.ndarray) -> dict:
+    """A run's final return as summary.json and every command line give it: the tables' definitions
+    (``FINAL_DEFINITION``; mean ± sample std over seeds, as ``mean_std``), from the evaluation returns
+    ``values`` (seeds, T) at env steps ``steps`` (T,). The last evaluation alone is kept under
+    ``last_eval_return_*``."""
+    values = np.asarray(values, np.float64)
+    final = final_returns(values)
+    mean, std = mean_std(final)
+    last = values[:, -1]
+    return {
+        "env_steps": int(steps[-1]),
+        "num_seeds": int(len(final)),
+        "final_return_per_seed": [_number(v) for v in final],
+        "final_return_mean": _number(mean),
+        "final_return_std": _number(std),
+        "final_return_evaluations": num_final_evaluations(values.shape[1]),
+        "final_return_definition": f"{FINAL_DEFINITION}; ± = sample std over seeds (ddof=1)",
+        "last_eval_return_per_seed": [_number(v) for v in last],
+        "last_eval_return_mean": _number(np.mean(last)),
+    }
+
+
+def describe_final(summary: dict) -> str:
+    """'final return 12.3 ± 4.5 (mean of the last 2 evaluations per seed; mean ± std over 8 seeds)'."""
+    mean, std = summary["final_return_mean"], summary["final_return_std"]
+    k = summary["final_return_evaluations"]
+    window = "the last evaluation" if k == 1 else f"mean of the last {k} evaluations"
+    return (f"final return {fmt(mean, 1)} ± {fmt(std, 1)} ({window} per seed; mean ± sample std over "
+            f"{summary['num_seeds']} seeds)")
+
+
 def mean_std(x: Sequence[float]) -> tuple[float, float]:
     """(mean, sample std with ddof=1); std is NaN for fewer than 2 values."""
     x = np.asarray(x, np.float64)

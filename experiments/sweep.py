@@ -34,10 +34,10 @@ import itertools
 import json
 import os
 import shutil
-import signal
 import sys
 import time
 
+import envs
 from experiments import run as run_lib
 from metapg_jax import compile_cache
 
@@ -98,7 +98,6 @@ def plan(a: dict, grid: dict[str, list[str]]):
 
     Returns (settings, configs, groups): ``settings[k]`` = {field: value string}; ``groups`` = list of
     {"settings": [k...], "batched": [fields varying within the program], "fixed": {structural field: value}}."""
-    import envs
     from metapg_jax.config import to_dict
     from metapg_jax.sweep import get_field, set_fields, structural_fields
 
@@ -136,6 +135,27 @@ def plan(a: dict, grid: dict[str, list[str]]):
     return settings, configs, out, env
 
 
+def check_fits(a: dict, configs, groups, env) -> None:
+    """Refuses (``ValueError``, one line: needed vs available) a sweep whose largest group's training state
+    would not fit in memory; groups run one after another. From shapes alone: nothing compiles."""
+    import jax
+
+    from metapg_jax.loop import vmap_seeds
+    from metapg_jax.sweep import Sweep
+
+    largest, label = 0, ""
+    for g, group in enumerate(groups):
+        cfg = configs[group["settings"][0]]
+        sweep = Sweep(cfg, env, tuple(group["batched"]))
+        n = len(group["settings"]) * a["seeds"]
+        values = jax.ShapeDtypeStruct((n, len(group["batched"])), jax.numpy.float32)
+        nbytes = run_lib.state_bytes(vmap_seeds(sweep.init), run_lib.abstract_keys(n), values)
+        if nbytes > largest:
+            largest, label = nbytes, (f"group {g + 1} ({len(group['settings'])} settings x {a['seeds']} seeds, "
+                                      f"replay buffers of {cfg.buffer_capacity:,})")
+    run_lib.check_fits(largest, f"the sweep's {label}")
+
+
 def default_out(a: dict) -> str:
     student = "" if a["student"] == "ddpg" else f"-{a['student']}"
     return os.path.join("runs", f"sweep-{a['env']}-{a['method']}{student}-s{a['seed']}")
@@ -153,6 +173,8 @@ def prepare(args) -> tuple[dict, dict, str]:
         stored = json.load(open(path))
         return stored["run_args"], stored["grid"], args.resume
     a = run_lib.run_args(argparse.Namespace(**{k: getattr(args, k) for k in SWEEP_ARGS}))
+    # Stored resolved (never 'auto'), so a resume on another backend keeps the engine.
+    a["physics"] = envs.resolve_physics(a["env"], a["source"], a["physics"])
     grid = parse_grid(args.grid)
     out = args.out or default_out(a)
     if os.path.exists(out) and not os.path.isdir(out):
@@ -170,6 +192,7 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError("--checkpoint-minutes must be positive")
         a, grid, out = prepare(args)
         settings, configs, groups, env = plan(a, grid)
+        check_fits(a, configs, groups, env)
         cache = compile_cache.resolve(args.compile_cache)
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
@@ -192,14 +215,17 @@ def main(argv: list[str] | None = None) -> int:
     print(f"sweep of {len(settings)} settings x {a['seeds']} seeds = {n} runs of {run_lib.run_label(configs[0])} "
           f"({configs[0].run.total_steps:,} env steps each) in {len(groups)} program(s); output {out}", flush=True)
     for g, group in enumerate(groups):
-        status = run_group(out, g, group, settings, configs, env, a, args)
+        status = run_group(out, g, group, settings, configs, env, a, args,
+                           restart=run_lib.restart_command("experiments.sweep", argv))
         if status:
             return status
     write_summary(out, settings, configs, plot=not args.no_plot)
     return 0
 
 
-def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, args) -> int:
+def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, args, restart: str = "") -> int:
+    """Trains one program group (resuming it from its checkpoint); returns the exit status. ``restart``:
+    the command that starts the sweep again (printed if it is stopped before any checkpoint)."""
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -237,32 +263,44 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
     writer = reporting.JsonlWriter(os.path.join(out, "metrics.jsonl"))
     progress = reporting.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
                                   disable=args.quiet, initial=start * cfg.run.eval_every)
-    interrupted = []
-    old = signal.signal(signal.SIGINT, lambda *_: interrupted.append(True))
     last_ckpt = t_train = t_chunk = time.perf_counter()
+    chunk = start
     try:
-        for chunk in range(start, cfg.num_chunks):
-            state, metrics = chunk_fn(state, values)
-            metrics = jax.device_get(metrics)
-            now = time.perf_counter()
-            rows = reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
-            t_chunk = now
-            finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
-            for i, row in enumerate(rows):
-                row["setting"], row["seed"] = members[i // num_seeds], i % num_seeds
-                row["finite"] = bool(finite[i])
-            writer.write(rows)
-            progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
-            last = chunk + 1 == cfg.num_chunks
-            if last or interrupted or time.perf_counter() - last_ckpt >= 60 * args.checkpoint_minutes:
-                checkpointer.save(chunk + 1, state, {"group": g, "settings": members})
-                last_ckpt = time.perf_counter()
-            if interrupted and not last:
-                print(f"\ninterrupted: checkpointed after chunk {chunk + 1} of {cfg.num_chunks} of group {g + 1}; "
-                      f"continue with: python -m experiments.sweep --resume {out}", file=sys.stderr, flush=True)
-                return 130
+        with run_lib.Signals() as signals:
+            for chunk in range(start, cfg.num_chunks):
+                state, metrics = chunk_fn(state, values)
+                metrics = jax.device_get(signals.wait(metrics))
+                now = time.perf_counter()
+                rows = reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
+                t_chunk = now
+                finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
+                for i, row in enumerate(rows):
+                    row["setting"], row["seed"] = members[i // num_seeds], i % num_seeds
+                    row["finite"] = bool(finite[i])
+                writer.write(rows)
+                progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
+                last = chunk + 1 == cfg.num_chunks
+                if last or signals.requested or time.perf_counter() - last_ckpt >= 60 * args.checkpoint_minutes:
+                    checkpointer.save(chunk + 1, state, {"group": g, "settings": members})
+                    last_ckpt = time.perf_counter()
+                if signals.requested and not last:
+                    print(f"\ninterrupted: checkpointed after chunk {chunk + 1} of {cfg.num_chunks} of group {g + 1}; "
+                          f"continue with: python -m experiments.sweep --resume {out}", file=sys.stderr, flush=True)
+                    return 130
+    except run_lib.Stopped as stop:
+        progress.close()
+        done = checkpointer.steps()
+        resume = f"python -m experiments.sweep --resume {out}"
+        if done or g == 0:
+            line = run_lib.stop_message(stop, f"group {g + 1}", chunk + 1, cfg.num_chunks, done[-1] if done else None,
+                                        cfg.run.eval_every, resume, restart)
+        else:  # the earlier groups are finished: --resume skips them and starts this one afresh
+            line = (f"stopped by {stop.args[0]}: chunk {chunk + 1} of {cfg.num_chunks} of group {g + 1} was running "
+                    f"and is lost with the group's earlier chunks (no checkpoint yet); groups 1-{g} are done; "
+                    f"continue with: {resume}")
+        print("\n" + line, file=sys.stderr, flush=True)
+        return stop.status
     finally:
-        signal.signal(signal.SIGINT, old)
         progress.close()
         writer.close()
         checkpointer.close()

@@ -204,8 +204,10 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
                 noise: str | None = None, steps: int | None = None, source: str = "gymnasium",
                 teacher: str | None = None, overrides: dict[str, Any] | None = None,
                 physics: str = "mjx", student: str = "ddpg") -> Config:
-    """A full config from a task, a method and a preset (see the module docstring)."""
+    """A full config from a task, a method and a preset (see the module docstring); ``physics='auto'``
+    is resolved here (``envs.resolve_physics``), so a config always names the engine it runs on."""
     spec = envs.get_spec(env)
+    physics = envs.resolve_physics(env, source, physics)
     if preset not in PRESETS:
         raise ValueError(f"unknown preset {preset!r}; valid presets: {', '.join(PRESETS)}")
     _check_method(method)

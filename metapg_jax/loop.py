@@ -97,7 +97,8 @@ def any_over_seeds(flag: jax.Array) -> jax.Array:
 def seed_keys(seed: int, num_seeds: int) -> jax.Array:
     """One key per seed; seed i's key does not depend on how many seeds run."""
     base = jax.random.PRNGKey(seed)
-    return jnp.stack([jax.random.fold_in(base, i) for i in range(num_seeds)])
+    # fold_in(base, i) for i = 0..num_seeds-1, in one call (a Python loop took ~6 ms a seed).
+    return jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_seeds, dtype=jnp.uint32))
 
 
 def flatten_time(tree):

@@ -448,16 +448,3 @@ def plot_learning_curve(rows: list[dict], path: str, title: str, key: str = "eva
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
-
-
-def summarize(rows: list[dict]) -> dict:
-    """Final evaluation return per seed (the last evaluation) and mean ± std over seeds."""
-    steps, values = curves(rows)
-    final = values[:, -1]
-    return {
-        "env_steps": int(steps[-1]),
-        "final_eval_return_per_seed": [_clean(v) for v in final],
-        "final_eval_return_mean": _clean(np.nanmean(final)),
-        "final_eval_return_std": _clean(np.nanstd(final)),
-        "num_seeds": int(len(final)),
-    }

@@ -2,6 +2,7 @@
 
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -96,7 +97,7 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=600,
                          env={**os.environ, "JAX_PLATFORMS": "cpu"})
     assert res.returncode == 0, res.stderr[-3000:]
-    assert "final eval return" in res.stdout and "mean ± std over 2 seeds" in res.stdout
+    assert "final return" in res.stdout and "mean ± sample std over 2 seeds" in res.stdout
     for name in ("config.json", "metrics.jsonl", "cycles.jsonl", "summary.json", "learning_curve.png", "teacher.png",
                  "policy.npz", "checkpoints",
                  "visits.npz"):
@@ -105,13 +106,16 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     assert len(rows) == 2 * 2 and {r["seed"] for r in rows} == {0, 1}
     assert rows[-1]["env_steps"] == 600
     summary = json.loads((out / "summary.json").read_text())
-    assert len(summary["final_eval_return_per_seed"]) == 2
+    from experiments import stats
     from metapg_jax import reporting
 
     train_s, exact = reporting.training_seconds(rows)
     assert exact and all(r["chunk_seconds"] > 0 for r in rows) and 0 < train_s <= summary["train_seconds"]
-    assert summary["final_eval_return_mean"] == pytest.approx(
-        sum(summary["final_eval_return_per_seed"]) / 2, rel=1e-5)
+    # summary.json's final return is the tables' (experiments.stats) on the same metrics file.
+    finals = stats.final_returns(reporting.curves(rows)[1])
+    assert summary["final_return_per_seed"] == pytest.approx(finals.tolist())
+    assert (summary["final_return_mean"], summary["final_return_std"]) == pytest.approx(stats.mean_std(finals))
+    assert summary["last_eval_return_per_seed"] == pytest.approx([r["eval_return"] for r in rows[-2:]])
     import numpy as np
 
     visits = np.load(out / "visits.npz")
@@ -183,3 +187,71 @@ def test_distributed_initialisation_reads_the_coordinator_variables(monkeypatch,
     monkeypatch.setenv("JAX_PROCESS_ID", "2")
     run._maybe_initialize_distributed()
     assert len(calls) == 2
+
+
+def test_a_run_too_large_for_memory_is_refused_before_compiling(tmp_path, capsys):
+    """--seeds=100000000 on pendulum (a 900k-step replay buffer each) is refused with one line, needed vs
+    available, from the state's shapes alone: nothing compiles and no folder is made. A sweep likewise."""
+    from experiments import sweep
+
+    out = tmp_path / "big"
+    assert run.main(["--env=pendulum", "--method=ddpg", "--seeds=100000000", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error: --seeds=100000000 of pendulum ddpg/adaptive-param"), err
+    assert "needs about" in err[0] and "PiB of memory" in err[0] and "GiB available" in err[0]
+    assert not out.exists()
+    assert sweep.main(["--env=pendulum", "--method=ddpg", "--seeds=50000000", "--grid", "ddpg.tau=0.01,0.02",
+                       "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "the sweep's group 1 (2 settings x 50000000 seeds" in err[0] and "available" in err[0]
+    assert not out.exists()
+
+
+def test_sigterm_before_the_first_checkpoint_says_nothing_was_saved(tmp_path):
+    """SIGTERM while the first chunk runs: exit 143 at once, with one line saying that nothing can be
+    resumed and the command that starts the run again."""
+    import signal
+
+    out = tmp_path / "run"
+    argv = ["--env=pendulum", "--method=ddpg", "--seeds=2", "--steps=90000", "--quiet", "--no-plot",
+            "--compile-cache=off", "--out", str(out)]
+    proc = subprocess.Popen([sys.executable, "-m", "experiments.run", *argv], cwd=ROOT, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, "JAX_PLATFORMS": "cpu"})
+    for line in proc.stdout:
+        if line.startswith("compiled in"):
+            break
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err[-2000:]
+    line = err.strip().splitlines()[-1]
+    # (The signal may land just before the loop starts its first chunk: "no chunk had started".)
+    assert re.match(r"stopped by SIGTERM: (chunk 1 of 10 was running and is lost|no chunk had started); nothing of "
+                    r"the run was checkpointed, so it cannot be resumed; start again with: python -m experiments.run "
+                    r"--env=pendulum", line), line
+    assert line.endswith(f"--out {out} --overwrite")
+    assert not any((out / "checkpoints").iterdir()) if (out / "checkpoints").exists() else True
+
+
+def test_the_stop_line_after_a_checkpoint_names_the_resume():
+    import signal
+
+    line = run.stop_message(run.Stopped(signal.SIGINT), "the run", 3, 10, 2, 9000, "RESUME", "RESTART")
+    assert line == ("stopped by Ctrl-C: chunk 3 of 10 was running and is lost; the run's last checkpoint holds 2 "
+                    "chunks (18,000 env steps per seed); continue with: RESUME")
+    assert run.Stopped(signal.SIGINT).status == 130 and run.Stopped(signal.SIGTERM).status == 143
+
+
+def test_a_resume_keeps_the_stored_engine(tmp_path):
+    """--physics=auto (the default) is stored resolved; a resume keeps the stored engine, also for a run
+    stored before --physics existed (its config's engine); an explicit --physics wins for a new run."""
+    out = str(tmp_path / "mjx")
+    _stored_run(out, ["--env=hopper", "--physics=mjx", "--steps=3000", "--out", out])
+    cfg, a, *_ = run.prepare(run.build_parser().parse_args(["--resume", out]))
+    assert cfg.env.physics == "mjx" and a["physics"] == "mjx"
+    cfg, a, *_ = run.prepare(run.build_parser().parse_args(["--env=hopper", "--out", str(tmp_path / "new")]))
+    assert cfg.env.physics == "mujoco" and a["physics"] == "mujoco"  # auto on the CPU
+    stored = json.load(open(os.path.join(out, "config.json")))
+    del stored["run_args"]["physics"]
+    json.dump(stored, open(os.path.join(out, "config.json"), "w"))
+    cfg, a, *_ = run.prepare(run.build_parser().parse_args(["--resume", out]))
+    assert cfg.env.physics == "mjx" and a["physics"] == "mjx"

@@ -314,3 +314,30 @@ def test_brax_tasks_build_and_step():
     assert np.all(np.isfinite(np.asarray(s1.obs)))
     # a clipped push to the right accelerates the cart to the right
     assert np.all(np.asarray(s1.obs)[:, 2] > 0)
+
+
+def test_halfcheetah_model_loads_without_the_settotalmass_warning(tmp_path, monkeypatch):
+    """envs.gym_mujoco.load_model compiles HalfCheetah's XML without its deprecated ``settotalmass``
+    attribute (mj_setTotalmass + mj_setConst instead): every array of the model equals the one compiled
+    from the file as it is, and nothing lands in the working directory (MuJoCo's MUJOCO_LOG.TXT)."""
+    import mujoco
+
+    from envs.gym_mujoco import gymnasium_asset_path, load_model
+
+    path = gymnasium_asset_path("half_cheetah.xml")
+    assert 'settotalmass="14"' in open(path).read()  # the case load_model handles is still there
+    ours_dir, reference_dir = tmp_path / "ours", tmp_path / "reference"
+    ours_dir.mkdir()
+    reference_dir.mkdir()
+    monkeypatch.chdir(ours_dir)
+    ours = load_model(path)
+    assert list(ours_dir.iterdir()) == []
+    monkeypatch.chdir(reference_dir)
+    reference = mujoco.MjModel.from_xml_path(path)  # MuJoCo warns here (into reference_dir)
+    compared = 0
+    for name in dir(reference):
+        value = getattr(reference, name, None)
+        if not name.startswith("_") and isinstance(value, np.ndarray):
+            np.testing.assert_array_equal(getattr(ours, name), value, err_msg=name)
+            compared += 1
+    assert compared > 100 and ours.body_mass.sum() == pytest.approx(14.0)

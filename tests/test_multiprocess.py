@@ -97,12 +97,12 @@ def two_process_run(tmp_path_factory):
 
 def test_two_processes_write_once_and_equal_one_process_with_two_devices(two_process_run):
     tmp_path, out, logs = two_process_run
-    assert "on 2 cpu device(s)" in logs[0] and "final eval return" in logs[0]
-    assert "final eval return" not in logs[1]  # process 1 trains its shard and writes nothing
+    assert "on 2 cpu device(s)" in logs[0] and "final return" in logs[0]
+    assert "final return" not in logs[1]  # process 1 trains its shard and writes nothing
     rows = _rows(out)
     assert sorted((r["seed"], r["chunk"]) for r in rows) == [(s, c) for s in range(2) for c in range(5)]
     summary = json.load(open(os.path.join(out, "summary.json")))
-    assert summary["num_seeds"] == 2 and len(summary["final_eval_return_per_seed"]) == 2
+    assert summary["num_seeds"] == 2 and len(summary["final_return_per_seed"]) == 2
     assert len(json.load(open(os.path.join(out, "config.json")))["devices"]) == 2  # the job's devices
 
     two_devices = str(tmp_path / "two-devices")

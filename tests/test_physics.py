@@ -169,7 +169,7 @@ def test_the_vmapped_callback_gets_the_whole_batch_in_one_call(monkeypatch):
 
 
 def test_engines_refuse_what_they_cannot_run():
-    with pytest.raises(ValueError, match="unknown physics 'bullet'; valid physics: mjx, mujoco"):
+    with pytest.raises(ValueError, match="unknown physics 'bullet'; valid physics: auto, mjx, mujoco"):
         envs.make("hopper", physics="bullet")
     with pytest.raises(ValueError, match="source 'brax' has only MJX"):
         envs.make("hopper", source="brax", physics="mujoco")
@@ -181,7 +181,7 @@ def test_engines_refuse_what_they_cannot_run():
 
 @pytest.mark.parametrize("argv, message", [
     (["--env=hopper", "--physics=mujoco", "--source=brax"], "error: --physics=mujoco steps gymnasium's models"),
-    (["--env=hopper", "--physics=warp"], "error: unknown physics 'warp'; valid physics: mjx, mujoco"),
+    (["--env=hopper", "--physics=warp"], "error: unknown physics 'warp'; valid physics: auto, mjx, mujoco"),
 ])
 def test_cli_refuses_bad_physics_before_compiling(argv, message, tmp_path, capsys):
     from experiments import run
@@ -228,3 +228,20 @@ def test_every_mujoco_task_trains_a_tiny_meta_run_on_the_c_engine(task):
     assert np.isfinite(np.asarray(metrics["eval_return"])).all()
     assert np.asarray(metrics["cycle"]["finite"]).all()
     assert int(state.env_steps[0]) == 300 and int(state.updates[0]) == 10
+
+
+def test_auto_physics_is_the_c_engine_on_a_cpu_and_mjx_elsewhere():
+    """``physics='auto'`` (the command lines' default): MuJoCo's C engine for gymnasium's MuJoCo tasks where
+    JAX runs on the CPU; MJX on accelerators and for brax's models; Pendulum keeps 'mjx' (JAX physics)."""
+    from metapg_jax.config import make_config
+
+    assert jax.default_backend() == "cpu"
+    for task in TASKS:
+        assert envs.resolve_physics(task, "gymnasium", "auto") == "mujoco"
+        assert make_config(task, "meta", physics="auto").env.physics == "mujoco"
+        assert envs.resolve_physics(task, "gymnasium", "auto", backend="gpu") == "mjx"
+        assert envs.resolve_physics(task, "brax", "auto") == "mjx"
+        for explicit in envs.PHYSICS:
+            assert envs.resolve_physics(task, "gymnasium", explicit) == explicit
+    assert envs.resolve_physics("pendulum", "gymnasium", "auto") == "mjx"
+    assert type(envs.make("reacher", physics="auto").unwrapped).__name__ == "MujocoCEnv"

@@ -37,6 +37,23 @@ def test_final_returns_use_the_last_tenth_at_least_one():
     np.testing.assert_allclose(final_returns(values[:, :3]), [2, 22])
 
 
+def test_run_summary_is_the_tables_final_return_with_the_last_evaluation_apart():
+    """summary.json's numbers (experiments.stats.run_summary): the mean of each seed's last 10% of
+    evaluations, mean ± sample std over seeds; the last evaluation alone under its own name."""
+    from experiments.stats import describe_final, run_summary
+
+    values = np.arange(2 * 20, dtype=float).reshape(2, 20)  # finals 18.5 and 38.5
+    s = run_summary(np.arange(1, 21) * 100, values)
+    assert s["env_steps"] == 2000 and s["num_seeds"] == 2 and s["final_return_evaluations"] == 2
+    assert s["final_return_per_seed"] == [18.5, 38.5] and s["final_return_mean"] == 28.5
+    assert s["final_return_std"] == pytest.approx(np.sqrt(2 * 10.0 ** 2))  # sample std of 18.5, 38.5
+    assert s["last_eval_return_per_seed"] == [19.0, 39.0] and s["last_eval_return_mean"] == 29.0
+    assert describe_final(s) == ("final return 28.5 ± 14.1 (mean of the last 2 evaluations per seed; mean ± "
+                                 "sample std over 2 seeds)")
+    values[1, -1] = np.nan  # a seed without a finite last evaluation: None in JSON, not NaN
+    assert run_summary(np.arange(1, 21), values)["last_eval_return_per_seed"] == [19.0, None]
+
+
 def test_mean_std_t_interval_and_welch_match_the_formulas():
     a = np.array([1.0, 2.5, 4.0, 3.5])
     b = np.array([0.5, 1.0, 0.0])
@@ -385,8 +402,8 @@ def test_reproduce_checks_every_cell_before_the_first_runs(tmp_path, capsys):
     cell = runs / "paper" / "pendulum" / "meta-independent"
     fabricate_run(cell, "pendulum", "meta-independent", np.zeros((2, 4)), np.arange(1, 5) * 300)
     summary = json.loads((cell / "summary.json").read_text())
-    (cell / "summary.json").write_text(json.dumps({**summary, "final_eval_return_mean": 0.0,
-                                                   "final_eval_return_std": 0.0}))
+    (cell / "summary.json").write_text(json.dumps({**summary, "final_return_mean": 0.0,
+                                                   "final_return_std": 0.0}))
     assert reproduce.main([*base, "--methods", "ddpg-paramnoise,meta-independent", "--steps", "1000",
                            "--dry-run"]) == 0
     assert "grid: 1 skipped, 1 would new" in capsys.readouterr().out
@@ -414,7 +431,7 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     summary = json.loads((runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").read_text())
     # 2 evaluations: the final return is the last one, as in summary.json.
     np.testing.assert_allclose(pend["methods"]["ddpg-paramnoise"]["per_seed"],
-                               summary["final_eval_return_per_seed"], rtol=1e-6)
+                               summary["final_return_per_seed"], rtol=1e-6)
     assert pend["methods"]["meta-variance"] == {"status": "not run"} and pend["welch"] is not None
     for name in ("table2.md", "table2_per_seed.csv", "curves_pendulum.png", "steps_to_threshold.csv",
                  "visitation_pendulum.png", "README.md", "manifest.json"):

@@ -75,7 +75,7 @@ def test_tiny_screen_runs_skips_and_reports(tmp_path, capsys):
         assert len(json.load(f)["commit"]) == 40
     with open(os.path.join(cell, "summary.json")) as f:
         assert summary["finished"]["normalised-reward"]["finals"] == pytest.approx(
-            json.load(f)["final_eval_return_per_seed"])
+            json.load(f)["final_return_per_seed"])
     with open(os.path.join(results, "README.md")) as f:
         text = f.read()
     base = max(("ddpg-paramnoise", "ddpg-normal"), key=lambda n: summary["finished"][n]["mean"])
