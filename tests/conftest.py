@@ -1,9 +1,36 @@
+import atexit
 import os
+import shutil
+import tempfile
 
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
-# No persistent compile cache unless a test names one (metapg_jax/compile_cache.py): the suite never
-# writes to ~/.cache and never starts warm from an earlier session. The subprocesses some tests start
-# inherit this. Measured on this 2-core machine: a session-wide shared cache did not make the suite
-# faster (its tiny programs mostly differ in shapes; test_cli + test_train used 482 s of CPU with it,
-# 377 s without, within this shared machine's noise).
-os.environ.setdefault("JAX_ENABLE_COMPILATION_CACHE", "false")
+
+
+def _session_compile_cache() -> None:
+    """One persistent compile cache for the whole test session, in a folder made for it (never
+    ~/.cache, never warm from an earlier session), shared by the xdist workers and the subprocesses
+    the tests start (they inherit the variables): a program that several tests compile with the same
+    shapes (the tiny runs of tests/helpers.py) compiles once and loads afterwards. The size limit
+    makes JAX's cache take its file lock, so workers do not read each other's half-written entries.
+    Programs with MuJoCo C engine calls are never stored (JAX does not cache host callbacks). Tests
+    of the cache itself name their own folders (tests/test_longrun.py)."""
+    if os.environ.get("METAPG_TEST_COMPILE_CACHE"):  # an xdist worker: the controller made it
+        return
+    folder = tempfile.mkdtemp(prefix="metapg-test-xla-")
+    os.environ.update({"METAPG_TEST_COMPILE_CACHE": folder, "JAX_COMPILATION_CACHE_DIR": folder,
+                       "JAX_ENABLE_COMPILATION_CACHE": "true", "JAX_COMPILATION_CACHE_MAX_SIZE": str(4 * 2**30)})
+    atexit.register(shutil.rmtree, folder, ignore_errors=True)
+
+
+_session_compile_cache()
+
+
+# The modules whose tests take longest on 2 cores (measured with --durations), started first so that the
+# short tests fill in around them and no worker is left with a long test at the end.
+FIRST = ("test_ray.py", "test_multiprocess.py", "test_envs_mujoco.py", "test_longrun.py", "test_screen.py",
+         "test_physics.py", "test_td3.py", "test_sweep.py")
+
+
+def pytest_collection_modifyitems(session, config, items):
+    rank = {name: i for i, name in enumerate(FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(FIRST)))  # stable: the rest keep their order

@@ -16,10 +16,17 @@ from experiments import run
 from metapg_jax import load_policy
 from metapg_jax.checkpoint import Checkpointer
 
+# One xdist worker for the module (pyproject's --dist loadgroup): the reference runs are module fixtures.
+pytestmark = pytest.mark.xdist_group("longrun")
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TINY = ["--env=pendulum", "--method=meta", "--seeds=2", "--quiet", "--no-plot",
-        "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
-        "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--checkpoint-every=1"]
+# The replay capacity is min(1e6, budget) unless run.buffer_size sets it: GROWING's runs of other budgets
+# are other programs (the extension tests need that); TINY's share their programs whatever the budget,
+# so the session's compile cache (conftest.py) compiles them once.
+GROWING = ["--env=pendulum", "--method=meta", "--seeds=2", "--quiet", "--no-plot",
+           "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
+           "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--checkpoint-every=1"]
+TINY = GROWING + ["--set", "run.buffer_size=2700"]
 
 
 def _metrics(out):
@@ -55,6 +62,14 @@ def reference(tmp_path_factory):
     """An uninterrupted 3-chunk run."""
     out = str(tmp_path_factory.mktemp("ref") / "run")
     assert run.main(TINY + ["--steps=900", "--out", out]) == 0
+    return out
+
+
+@pytest.fixture(scope="module")
+def growing_reference(tmp_path_factory):
+    """An uninterrupted 3-chunk run whose replay capacity is its budget (900)."""
+    out = str(tmp_path_factory.mktemp("ref") / "run")
+    assert run.main(GROWING + ["--steps=900", "--out", out]) == 0
     return out
 
 
@@ -128,10 +143,11 @@ def test_compile_cache_folder_choice(tmp_path, monkeypatch):
     assert compile_cache._max_size(str(tmp_path / "env")) == 1000
 
 
-def test_extending_a_finished_run_equals_the_longer_run(reference, tmp_path):
+def test_extending_a_finished_run_equals_the_longer_run(growing_reference, tmp_path):
     """600 steps (replay capacity 600), then --steps=900: the 900-step reference, bit for bit."""
+    reference = growing_reference
     out = str(tmp_path / "run")
-    assert run.main(TINY + ["--steps=600", "--out", out]) == 0
+    assert run.main(GROWING + ["--steps=600", "--out", out]) == 0
     short = json.load(open(os.path.join(out, "summary.json")))
     assert short["env_steps"] == 600
     short_policy = _policy_arrays(out)
@@ -162,11 +178,12 @@ def test_extending_a_finished_run_equals_the_longer_run(reference, tmp_path):
         np.testing.assert_array_equal(exported[k], short_policy[k], err_msg=k)
 
 
-def test_an_interrupted_extension_resumes_from_the_smaller_checkpoint(reference, tmp_path):
+def test_an_interrupted_extension_resumes_from_the_smaller_checkpoint(growing_reference, tmp_path):
     """The extension's config is stored before it trains: a plain --resume continues it, also from a
     checkpoint written with the smaller replay capacity."""
+    reference = growing_reference
     out = str(tmp_path / "run")
-    assert run.main(TINY + ["--steps=600", "--out", out]) == 0
+    assert run.main(GROWING + ["--steps=600", "--out", out]) == 0
     cfg_path = os.path.join(out, "config.json")
     stored = json.load(open(cfg_path))
     cfg = run.config_from_run_args({**stored["run_args"], "steps": 900})

@@ -22,6 +22,9 @@ import time
 import numpy as np
 import pytest
 
+# One xdist worker for the module (pyproject's --dist loadgroup): the two-process job is a module fixture.
+pytestmark = pytest.mark.xdist_group("multiprocess")
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TINY = ["--env=pendulum", "--method=ddpg", "--seeds=2", "--steps=1500", "--quiet", "--no-plot",
         "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "ddpg.batch_size=16",

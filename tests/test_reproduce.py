@@ -24,8 +24,11 @@ from experiments.stats import (final_returns, first_step_reaching, fmt, mean_std
 from tests.helpers import fabricate_run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# The same settings as tests/test_screen.py's, with a fixed replay capacity: the two files' pendulum cells of
+# the same method run one program whatever their budget (the session's compile cache compiles it once).
 TINY = ["--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
-        "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=64", "--set", "ddpg.batch_size=16"]
+        "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=64", "--set", "ddpg.batch_size=16",
+        "--set", "run.buffer_size=900"]
 
 
 # ---------------------------------------------------------------------------------------------- statistics

@@ -12,8 +12,9 @@ from experiments import ablation, cells, screen
 from experiments.run import build_parser, config_from_run_args, run_args
 from metapg_jax.config import to_dict
 
+# tests/test_reproduce.py's TINY settings (its cells of the same method share these cells' programs).
 TINY = ["run.eval_every=300", "ddpg.hidden=16,16", "meta.hidden=16,16", "run.eval_episodes=2",
-        "meta.visit_samples=64", "ddpg.batch_size=16"]
+        "meta.visit_samples=64", "ddpg.batch_size=16", "run.buffer_size=900"]
 
 
 def _config(task, options):
