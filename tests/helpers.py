@@ -9,6 +9,15 @@ from metapg_jax import config as config_lib
 from metapg_jax.config import make_config
 
 
+# experiments.run options of a tiny Pendulum Meta run, shared by the command-line tests. With the same
+# replay capacity (``run.buffer_size``) such runs compile to the same programs whatever their budget, so
+# the session's compile cache (conftest.py) compiles them once for all the tests and subprocesses.
+TINY_RUN = ["--env=pendulum", "--method=meta", "--seeds=2", "--set", "run.eval_every=300",
+            "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16", "--set", "run.eval_episodes=2",
+            "--set", "meta.visit_samples=16"]
+TINY_BUFFER = ["--set", "run.buffer_size=2700"]
+
+
 def tiny_config(method="ddpg", steps=600, eval_every=300, env="pendulum", physics="mjx", **overrides):
     base = {
         "run.eval_every": eval_every, "run.eval_episodes": 2, "ddpg.hidden": "16,16",

@@ -10,6 +10,7 @@ import sys
 import pytest
 
 from experiments import run
+from tests.helpers import TINY_BUFFER, TINY_RUN
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -90,10 +91,8 @@ def test_help_documents_every_option():
 
 def test_tiny_meta_run_end_to_end(tmp_path):
     out = tmp_path / "meta"
-    cmd = [sys.executable, "-m", "experiments.run", "--env=pendulum", "--method=meta", "--seeds=2",
-           "--steps=600", "--quiet", "--out", str(out), "--set", "run.eval_every=300",
-           "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16", "--set", "run.eval_episodes=2",
-           "--set", "meta.visit_samples=64"]
+    cmd = [sys.executable, "-m", "experiments.run", *TINY_RUN, *TINY_BUFFER, "--steps=600", "--quiet",
+           "--out", str(out)]
     res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=600,
                          env={**os.environ, "JAX_PLATFORMS": "cpu"})
     assert res.returncode == 0, res.stderr[-3000:]
@@ -119,7 +118,7 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     import numpy as np
 
     visits = np.load(out / "visits.npz")
-    assert visits["explore_early"].shape == (2, 64, 3) and int(visits["explore_count"][0]) == 2 * 100
+    assert visits["explore_early"].shape == (2, 16, 3) and int(visits["explore_count"][0]) == 2 * 100
     cycles = [json.loads(line) for line in (out / "cycles.jsonl").read_text().splitlines()]
     assert len(cycles) == 2 * (600 // 300) and "meta_reward" in cycles[0]
 
@@ -213,8 +212,7 @@ def test_sigterm_before_the_first_checkpoint_says_nothing_was_saved(tmp_path):
     import signal
 
     out = tmp_path / "run"
-    argv = ["--env=pendulum", "--method=ddpg", "--seeds=2", "--steps=90000", "--quiet", "--no-plot",
-            "--compile-cache=off", "--out", str(out)]
+    argv = [*TINY_RUN, *TINY_BUFFER, "--steps=270000", "--quiet", "--no-plot", "--out", str(out)]
     proc = subprocess.Popen([sys.executable, "-m", "experiments.run", *argv], cwd=ROOT, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, "JAX_PLATFORMS": "cpu"})
     for line in proc.stdout:
@@ -225,7 +223,7 @@ def test_sigterm_before_the_first_checkpoint_says_nothing_was_saved(tmp_path):
     assert proc.returncode == 143, err[-2000:]
     line = err.strip().splitlines()[-1]
     # (The signal may land just before the loop starts its first chunk: "no chunk had started".)
-    assert re.match(r"stopped by SIGTERM: (chunk 1 of 10 was running and is lost|no chunk had started); nothing of "
+    assert re.match(r"stopped by SIGTERM: (chunk \d+ of 900 was running and is lost|no chunk had started); nothing of "
                     r"the run was checkpointed, so it cannot be resumed; start again with: python -m experiments.run "
                     r"--env=pendulum", line), line
     assert line.endswith(f"--out {out} --overwrite")

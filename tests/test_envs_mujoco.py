@@ -176,7 +176,7 @@ def test_mjx_and_the_c_engine_agree_to_float32_round_off(name):
 # bisect to float32 resolution (24-25 steps). The other tasks are checked the
 # same way by hand (bitwise equal over 8 envs x 1,000 random steps, see
 # envs/gym_mujoco.py); one compile of stock MJX per task is the cost here.
-@pytest.mark.parametrize("name", ["inverted_double_pendulum", "hopper"])
+@pytest.mark.parametrize("name", ["hopper"])  # contacts: the line search's iteration counts vary most
 def test_early_exit_linesearch_is_stock_physics(name):
     stock_loop = _mjx_solver._while_loop_scan
     fast, stock = _probe(name), _probe(name, early_exit_linesearch=False)

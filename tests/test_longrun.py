@@ -15,6 +15,7 @@ import pytest
 from experiments import run
 from metapg_jax import load_policy
 from metapg_jax.checkpoint import Checkpointer
+from tests.helpers import TINY_BUFFER, TINY_RUN
 
 # One xdist worker for the module (pyproject's --dist loadgroup): the reference runs are module fixtures.
 pytestmark = pytest.mark.xdist_group("longrun")
@@ -23,10 +24,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The replay capacity is min(1e6, budget) unless run.buffer_size sets it: GROWING's runs of other budgets
 # are other programs (the extension tests need that); TINY's share their programs whatever the budget,
 # so the session's compile cache (conftest.py) compiles them once.
-GROWING = ["--env=pendulum", "--method=meta", "--seeds=2", "--quiet", "--no-plot",
-           "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
-           "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--checkpoint-every=1"]
-TINY = GROWING + ["--set", "run.buffer_size=2700"]
+GROWING = [*TINY_RUN, "--quiet", "--no-plot", "--checkpoint-every=1"]
+TINY = GROWING + TINY_BUFFER
 
 
 def _metrics(out):
@@ -229,10 +228,6 @@ def sigkill_resume_and_compare(tmp_path, args, chunks, resume_args=()):
     assert run.main(args + ["--out", full]) == 0
     _assert_same_run(full, out)
     return full
-
-
-def test_sigkill_then_resume_gives_the_same_result(tmp_path):
-    sigkill_resume_and_compare(tmp_path, TINY + ["--steps=2700"], chunks=9)
 
 
 @pytest.mark.parametrize("given, expected", [

@@ -15,7 +15,7 @@ from metapg_jax import reporting
 from metapg_jax.sweep import structural_fields
 from tests.helpers import tiny_config
 
-TINY = ["--env=pendulum", "--method=meta", "--seeds=2", "--steps=600", "--quiet", "--compile-cache=off",
+TINY = ["--env=pendulum", "--method=meta", "--seeds=2", "--steps=600", "--quiet",
         "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
         "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--set", "ddpg.batch_size=16",
         "--set", "run.train_steps=5", "--set", "meta.explore_steps=50", "--set", "meta.eval_steps=100",
