@@ -498,7 +498,8 @@ def measure_main_job(physics: str, steps: int) -> dict:
 
 def main_job_markdown(rows: list[dict], meta: dict) -> str:
     target = TARGETS["main_job_compile_s"]
-    lines = [f"## The main job ({meta['date']}, {meta['machine']}, JAX {meta['jax']}, {meta['backend']})", "",
+    commit = f", commit {meta['commit'][:7]}{' (dirty)' if meta.get('dirty') else ''}" if meta.get("commit") else ""
+    lines = [f"## The main job ({meta['date']}, {meta['machine']}, JAX {meta['jax']}, {meta['backend']}{commit})", "",
              f"`python -m experiments.bench --main-job`: `python -m experiments.run {' '.join(MAIN_JOB)}` in a fresh "
              f"process with no compile cache, cut at {rows[0]['steps_per_seed']:,} env steps per seed; one run per "
              f"engine, one after the other. Compile: the cold compile the run prints; rate: env steps per second over "
@@ -740,6 +741,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.main_job:
         json_path = args.json or os.path.join(BENCH_DIR, "benchmarks_main_job.json")
         meta["json"] = json_path
+        meta.pop("repeats")  # one run per engine
+        meta.update({k: v for k, v in reporting.provenance().items() if k in ("commit", "dirty")})
         rows = []
         for ph in args.main_job_physics.split(","):
             print(f"main job, --physics={ph} ...", flush=True)
