@@ -17,7 +17,7 @@ from metapg_jax import load_policy
 from metapg_jax.checkpoint import Checkpointer
 from tests.helpers import TINY_BUFFER, TINY_RUN
 
-# One xdist worker for the module (pyproject's --dist loadgroup): the reference runs are module fixtures.
+# One xdist worker for the module (pyproject's --dist loadgroup): its reference runs are built once.
 pytestmark = pytest.mark.xdist_group("longrun")
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -56,7 +56,7 @@ def _subprocess(args, **kw):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # not "module": a worker that runs another module's test in between keeps it
 def reference(tmp_path_factory):
     """An uninterrupted 3-chunk run."""
     out = str(tmp_path_factory.mktemp("ref") / "run")
@@ -64,7 +64,7 @@ def reference(tmp_path_factory):
     return out
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def growing_reference(tmp_path_factory):
     """An uninterrupted 3-chunk run whose replay capacity is its budget (900)."""
     out = str(tmp_path_factory.mktemp("ref") / "run")

@@ -22,7 +22,7 @@ import time
 import numpy as np
 import pytest
 
-# One xdist worker for the module (pyproject's --dist loadgroup): the two-process job is a module fixture.
+# One xdist worker for the module (pyproject's --dist loadgroup): its two-process job is built once.
 pytestmark = pytest.mark.xdist_group("multiprocess")
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -39,7 +39,10 @@ def _free_port() -> int:
 
 
 def _env(**extra) -> dict:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("JAX_") and k != "XLA_FLAGS"}
+    # JAX's own settings are the job's, but for the session's compile cache (conftest.py): the killed and
+    # the resumed job load the program the first job compiled.
+    keep = ("JAX_COMPILATION_CACHE_DIR", "JAX_ENABLE_COMPILATION_CACHE", "JAX_COMPILATION_CACHE_MAX_SIZE")
+    env = {k: v for k, v in os.environ.items() if k in keep or (not k.startswith("JAX_") and k != "XLA_FLAGS")}
     env.update({"PYTHONPATH": ROOT, "JAX_PLATFORMS": "cpu", **extra})
     return env
 
@@ -89,7 +92,7 @@ def _policy(out):
         return {k: p[k] for k in p.files}
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")  # not "module": a worker that runs another module's test in between keeps it
 def two_process_run(tmp_path_factory):
     tmp_path = tmp_path_factory.mktemp("multiprocess")
     out = str(tmp_path / "job")
