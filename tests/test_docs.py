@@ -27,7 +27,7 @@ def test_readme_starts_with_the_main_job_and_the_test_command_ci_runs():
     ci = [line.strip() for line in read(".ci/run").splitlines()]
     marker = ci.index("# --- the README's test command (keep the two in sync) ---")
     assert ci[marker + 1] == commands[1], "README's test command and the one .ci/run runs differ"
-    assert 'for python in python3 "$(python312)"; do' in ci, ".ci/run runs the suite on Python 3.11 and 3.12"
+    assert 'for python in python3 "$py312"; do' in ci, ".ci/run runs the suite on Python 3.11 and 3.12"
 
 
 def anchors(markdown):

@@ -35,9 +35,6 @@ from envs.gym_mujoco import (
     state_from_qpos_qvel,
 )
 
-# One xdist worker for the module (pyproject's --dist loadgroup): _probe compiles each task once per process.
-pytestmark = pytest.mark.xdist_group("mjx_probe")
-
 # name -> (steps to scan, cross-check tolerance, rollout A must terminate)
 CASES = {
     "inverted_pendulum": (20, 1e-5, True),

@@ -17,9 +17,6 @@ from metapg_jax import load_policy
 from metapg_jax.checkpoint import Checkpointer
 from tests.helpers import TINY_BUFFER, TINY_RUN
 
-# One xdist worker for the module (pyproject's --dist loadgroup): its reference runs are built once.
-pytestmark = pytest.mark.xdist_group("longrun")
-
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The replay capacity is min(1e6, budget) unless run.buffer_size sets it: GROWING's runs of other budgets
 # are other programs (the extension tests need that); TINY's share their programs whatever the budget,
@@ -56,7 +53,7 @@ def _subprocess(args, **kw):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
 
-@pytest.fixture(scope="session")  # not "module": a worker that runs another module's test in between keeps it
+@pytest.fixture(scope="session")  # built once per xdist worker, whatever runs in between
 def reference(tmp_path_factory):
     """An uninterrupted 3-chunk run."""
     out = str(tmp_path_factory.mktemp("ref") / "run")

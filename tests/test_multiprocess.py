@@ -22,9 +22,6 @@ import time
 import numpy as np
 import pytest
 
-# One xdist worker for the module (pyproject's --dist loadgroup): its two-process job is built once.
-pytestmark = pytest.mark.xdist_group("multiprocess")
-
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TINY = ["--env=pendulum", "--method=ddpg", "--seeds=2", "--steps=1500", "--quiet", "--no-plot",
         "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "ddpg.batch_size=16",
@@ -92,7 +89,7 @@ def _policy(out):
         return {k: p[k] for k in p.files}
 
 
-@pytest.fixture(scope="session")  # not "module": a worker that runs another module's test in between keeps it
+@pytest.fixture(scope="session")  # built once per xdist worker, whatever runs in between
 def two_process_run(tmp_path_factory):
     tmp_path = tmp_path_factory.mktemp("multiprocess")
     out = str(tmp_path / "job")
