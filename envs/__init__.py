@@ -69,8 +69,8 @@ def resolve_physics(name: str, source: str, physics: str, backend: str | None = 
     """The engine ``physics='auto'`` means; any other value is returned unchanged.
 
     'auto' is MuJoCo's C engine for a gymnasium MuJoCo task where JAX's default backend is the CPU
-    (measured: the main job compiles about 8x faster and trains 2.5x faster there;
-    docs/performance.md), and MJX on accelerators (the C engine runs on the host CPU), for brax's
+    (measured on 2 CPU cores: the main job compiled 8.0x and trained 2.3x faster there than on MJX;
+    results/benchmarks/BENCHMARKS.md, "The main job"), and MJX on accelerators (the C engine runs on the host CPU), for brax's
     models (MJX only) and for Pendulum (a JAX task: its value is irrelevant and stays 'mjx').
 
     Args:

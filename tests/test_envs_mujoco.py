@@ -331,6 +331,9 @@ def test_halfcheetah_model_loads_without_the_settotalmass_warning(tmp_path, monk
     reference_dir.mkdir()
     monkeypatch.chdir(ours_dir)
     ours = load_model(path)
+    import envs
+
+    envs.make("halfcheetah", physics="mujoco")  # the C engine's env, as a run builds it
     assert list(ours_dir.iterdir()) == []
     monkeypatch.chdir(reference_dir)
     reference = mujoco.MjModel.from_xml_path(path)  # MuJoCo warns here (into reference_dir)
