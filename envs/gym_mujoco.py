@@ -702,11 +702,29 @@ class BraxTaskAdapter(Wrapper):
         )
 
 
+@contextlib.contextmanager
+def without_the_settotalmass_warning():
+    """While brax (or gymnasium, the tests' reference) compiles a model file it reads itself, where
+    ``load_model``'s fix cannot reach: MuJoCo's deprecation warning for ``settotalmass`` (brax's and
+    gymnasium's half_cheetah.xml) is dropped instead of going to MUJOCO_LOG.TXT in the working directory; any other MuJoCo warning is
+    a Python warning. Installed on the calling thread around model loading only, then restored."""
+    def handler(message: str) -> None:
+        if "'settotalmass' is deprecated" not in message:
+            warnings.warn(f"MuJoCo: {message}", RuntimeWarning, stacklevel=2)
+
+    previous = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(handler)
+    try:
+        yield
+    finally:
+        mujoco.set_mju_user_warning(previous)
+
+
 def _brax_task(name: str) -> Callable[..., Env]:
     def make(**overrides) -> Env:
-        return BraxTaskAdapter(
-            brax_envs.get_environment(name, backend="mjx", **overrides), name
-        )
+        with without_the_settotalmass_warning():
+            env = brax_envs.get_environment(name, backend="mjx", **overrides)
+        return BraxTaskAdapter(env, name)
 
     make.__name__ = f"brax_{name}"
     make.__doc__ = f"brax's own '{name}' env on the mjx backend, adapted to the contract."

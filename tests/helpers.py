@@ -18,6 +18,18 @@ TINY_RUN = ["--env=pendulum", "--method=meta", "--seeds=2", "--set", "run.eval_e
 TINY_BUFFER = ["--set", "run.buffer_size=2700"]
 
 
+def gymnasium_make(gym_id: str):
+    """``gymnasium.make(gym_id)``, the tests' reference, without MuJoCo's settotalmass deprecation warning
+    landing in the working directory as MUJOCO_LOG.TXT (envs.gym_mujoco.without_the_settotalmass_warning;
+    the model is gymnasium's own, unchanged)."""
+    import gymnasium
+
+    from envs.gym_mujoco import without_the_settotalmass_warning
+
+    with without_the_settotalmass_warning():
+        return gymnasium.make(gym_id)
+
+
 def tiny_config(method="ddpg", steps=600, eval_every=300, env="pendulum", physics="mjx", **overrides):
     base = {
         "run.eval_every": eval_every, "run.eval_episodes": 2, "ddpg.hidden": "16,16",

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import functools
 
-import gymnasium
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -34,6 +33,7 @@ from envs.gym_mujoco import (
     Hopper,
     state_from_qpos_qvel,
 )
+from tests.helpers import gymnasium_make
 
 # name -> (steps to scan, cross-check tolerance, rollout A must terminate)
 CASES = {
@@ -52,7 +52,7 @@ N_RESET = 3  # batch rows 0..2 start from env.reset; rows 3, 4 are A, B
 
 def _gym_rollout(gym_id, seed, scale, n_steps):
     """Run gymnasium for n_steps (or until terminated) with random actions."""
-    genv = gymnasium.make(gym_id)
+    genv = gymnasium_make(gym_id)
     obs0, _ = genv.reset(seed=seed)
     data = genv.unwrapped.data
     qpos, qvel = data.qpos.copy(), data.qvel.copy()
@@ -268,7 +268,7 @@ def test_reset_noise(name):
 def test_hopper_health_matches_gymnasium():
     """Hopper's is_healthy (termination) on states on both sides of each range."""
     env = Hopper()
-    genv = gymnasium.make("Hopper-v5").unwrapped
+    genv = gymnasium_make("Hopper-v5").unwrapped
     genv.reset(seed=0)
     base_q, base_v = genv.init_qpos.copy(), genv.init_qvel.copy()
     cases = [
@@ -291,12 +291,15 @@ def test_hopper_health_matches_gymnasium():
         assert bool(env.is_healthy(Data)) == genv.is_healthy, (dq, dv)
 
 
-def test_brax_tasks_build_and_step():
-    """All five of brax's versions build on mjx; one is stepped under jit+vmap."""
+def test_brax_tasks_build_and_step(tmp_path, monkeypatch):
+    """All five of brax's versions build on mjx (and write no MUJOCO_LOG.TXT into the working directory:
+    brax's half_cheetah.xml has the deprecated settotalmass too); one is stepped under jit+vmap."""
     assert set(BRAX_TASKS) == set(GYMNASIUM_TASKS)
+    monkeypatch.chdir(tmp_path)
     for name in BRAX_TASKS:
         env = BRAX_TASKS[name]()
         assert env.backend == "mjx" and env.action_size >= 1
+    assert list(tmp_path.iterdir()) == []
 
     env = BRAX_TASKS["inverted_pendulum"]()
 

@@ -13,7 +13,6 @@ import json
 import os
 import time
 
-import gymnasium
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -23,6 +22,7 @@ import pytest
 import envs
 from envs.gym_mujoco import GYMNASIUM_TASKS
 from envs.mujoco_c import STATE_SPEC, HostPhysics, MujocoCEnv
+from tests.helpers import gymnasium_make
 
 # task -> (gymnasium id, steps of one whole episode: gymnasium's time limit)
 TASKS = {
@@ -66,7 +66,7 @@ def test_host_steps_equal_gymnasium_bit_for_bit_for_a_whole_episode(c_env):
     the integration state (warm start included) equal gymnasium's at every step."""
     name, env = c_env
     gym_id, steps = TASKS[name]
-    gyms = [gymnasium.make(gym_id).unwrapped for _ in SCALES]
+    gyms = [gymnasium_make(gym_id).unwrapped for _ in SCALES]
     obs0 = [g.reset(seed=10 + i)[0] for i, g in enumerate(gyms)]
     rows, obs = env.host.reset(np.stack([g.data.qpos for g in gyms]), np.stack([g.data.qvel for g in gyms]))
     np.testing.assert_array_equal(obs, np.stack(obs0))
@@ -109,7 +109,7 @@ def test_the_compiled_program_gives_gymnasiums_episode(c_env):
     gym_id, steps = TASKS[name]
     wrapped = envs.make(name, physics="mujoco")
     raw = wrapped.unwrapped
-    gyms = [gymnasium.make(gym_id) for _ in SCALES]
+    gyms = [gymnasium_make(gym_id) for _ in SCALES]
     for i, g in enumerate(gyms):
         g.reset(seed=20 + i)
     qpos = np.stack([g.unwrapped.data.qpos for g in gyms])
