@@ -432,6 +432,7 @@ class Signals:
 
     def __init__(self):
         self.requested = False
+        self.in_flight = None  # the 1-based chunk the loop is running, for the stop line
         self._old = {}
 
     def _handler(self, signum, frame):
@@ -502,12 +503,12 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
         try:
             return _run(signals, cfg, a, out, resume=resume, overwrite=overwrite, plot=plot, quiet=quiet,
                         checkpoint_every=checkpoint_every, checkpoint_minutes=checkpoint_minutes,
-                        extend_from=extend_from, tensorboard=tensorboard, restart=restart, trainer=trainer)
-        except Stopped as stop:  # before the loop (while compiling): the loop reports its own
+                        extend_from=extend_from, tensorboard=tensorboard, trainer=trainer)
+        except Stopped as stop:  # while compiling or in the loop (_run has closed its files and progress bar)
             from metapg_jax.checkpoint import saved_steps
 
             done = saved_steps(os.path.join(out, "checkpoints"))
-            print("\n" + stop_message(stop, "the run", None, cfg.num_chunks, done[-1] if done else None,
+            print("\n" + stop_message(stop, "the run", signals.in_flight, cfg.num_chunks, done[-1] if done else None,
                                       cfg.run.eval_every, f"python -m experiments.run --resume {out}", restart or ""),
                   file=sys.stderr, flush=True)
             return stop.status
@@ -515,7 +516,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
 
 def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bool, overwrite: bool, plot: bool,
          quiet: bool, checkpoint_every: int, checkpoint_minutes: float, extend_from: int | None, tensorboard: bool,
-         restart: str | None, trainer) -> int:
+         trainer) -> int:
     import jax
     import numpy as np
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
@@ -599,9 +600,10 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
                                   initial=start * cfg.run.eval_every)  # rates: this call's steps only
     last_ckpt = time.perf_counter()
     t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
-    status, chunks_run, chunk = 0, 0, start
+    status, chunks_run = 0, 0
     try:
         for chunk in range(start, cfg.num_chunks):
+            signals.in_flight = chunk + 1
             state, metrics = chunk_fn(state)
             metrics = _to_host(signals.wait(metrics))
             chunks_run += 1
@@ -638,13 +640,6 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
                       f"continue with: python -m experiments.run --resume {out}", file=sys.stderr, flush=True)
                 status = 130
                 break
-    except Stopped as stop:
-        progress.close()
-        done = checkpointer.steps()
-        print("\n" + stop_message(stop, "the run", chunk + 1, cfg.num_chunks, done[-1] if done else None,
-                                  cfg.run.eval_every, f"python -m experiments.run --resume {out}", restart or ""),
-              file=sys.stderr, flush=True)
-        status = stop.status
     finally:
         progress.close()
         if metrics_writer is not None:

@@ -48,17 +48,13 @@ def final_returns(values: np.ndarray, fraction: float = 0.1) -> np.ndarray:
     return np.nanmean(values[:, -k:], axis=1)
 
 
-def _number(x: float) -> float | None:
-    """A JSON number: None for NaN and infinities (a seed without a finite evaluation)."""
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
 def run_summary(steps: np.ndarray, values: np.ndarray) -> dict:
     """A run's final return as summary.json and every command line give it: the tables' definitions
     (``FINAL_DEFINITION``; mean ± sample std over seeds, as ``mean_std``), from the evaluation returns
     ``values`` (seeds, T) at env steps ``steps`` (T,). The last evaluation alone is kept under
     ``last_eval_return_*``."""
+    from metapg_jax.reporting import json_number
+
     values = np.asarray(values, np.float64)
     final = final_returns(values)
     mean, std = mean_std(final)
@@ -66,13 +62,13 @@ def run_summary(steps: np.ndarray, values: np.ndarray) -> dict:
     return {
         "env_steps": int(steps[-1]),
         "num_seeds": int(len(final)),
-        "final_return_per_seed": [_number(v) for v in final],
-        "final_return_mean": _number(mean),
-        "final_return_std": _number(std),
+        "final_return_per_seed": [json_number(v) for v in final],
+        "final_return_mean": json_number(mean),
+        "final_return_std": json_number(std),
         "final_return_evaluations": num_final_evaluations(values.shape[1]),
         "final_return_definition": f"{FINAL_DEFINITION}; ± = sample std over seeds (ddof=1)",
-        "last_eval_return_per_seed": [_number(v) for v in last],
-        "last_eval_return_mean": _number(np.mean(last)),
+        "last_eval_return_per_seed": [json_number(v) for v in last],
+        "last_eval_return_mean": json_number(np.mean(last)),
     }
 
 

@@ -76,7 +76,8 @@ def _jsonable(x):
     raise TypeError(f"not JSON serialisable: {type(x)}")
 
 
-def _clean(x: float) -> float | None:
+def json_number(x: float) -> float | None:
+    """A number for JSON: None for NaN and infinities."""
     x = float(x)
     return None if math.isnan(x) or math.isinf(x) else x
 
@@ -140,9 +141,9 @@ def _train_return(cyc: dict, i: int) -> float | None:
         return None
     if "train_episodes" not in cyc:
         v = np.asarray(cyc["train_return"][i], np.float64)
-        return _clean(np.nanmean(v)) if np.isfinite(v).any() else None
+        return json_number(np.nanmean(v)) if np.isfinite(v).any() else None
     n_eps = cyc["train_episodes"][i].sum()
-    return _clean(np.nansum(cyc["train_return"][i] * cyc["train_episodes"][i]) / n_eps) if n_eps > 0 else None
+    return json_number(np.nansum(cyc["train_return"][i] * cyc["train_episodes"][i]) / n_eps) if n_eps > 0 else None
 
 
 def chunk_rows(metrics: dict, chunk: int, wall_time: float, chunk_seconds: float | None = None) -> list[dict]:
@@ -161,9 +162,9 @@ def chunk_rows(metrics: dict, chunk: int, wall_time: float, chunk_seconds: float
             "chunk": chunk,
             "env_steps": int(metrics["env_steps"][i]),
             "updates": int(metrics["updates"][i]),
-            "eval_return": _clean(eval_ret.mean()),
-            "eval_return_std": _clean(eval_ret.std()),
-            "eval_length": _clean(np.mean(metrics["eval_length"][i])),
+            "eval_return": json_number(eval_ret.mean()),
+            "eval_return_std": json_number(eval_ret.std()),
+            "eval_length": json_number(np.mean(metrics["eval_length"][i])),
             "train_return": _train_return(cyc, i),
             "wall_time": round(wall_time, 3),
         }
@@ -173,7 +174,7 @@ def chunk_rows(metrics: dict, chunk: int, wall_time: float, chunk_seconds: float
             if name in ("train_return", "train_episodes", "finite") or np.ndim(values[i]) != 1:
                 continue
             v = np.asarray(values[i], np.float64)
-            row[name] = _clean(np.nanmean(v)) if np.isfinite(v).any() else None
+            row[name] = json_number(np.nanmean(v)) if np.isfinite(v).any() else None
         rows.append(row)
     return rows
 
@@ -186,7 +187,7 @@ def cycle_rows(metrics: dict, names: Iterable[str], first_cycle: int) -> list[di
         return []
     num_seeds, num_cycles = np.shape(cyc[names[0]])[:2]
     return [
-        {"seed": i, "cycle": first_cycle + c, **{n: _clean(cyc[n][i][c]) for n in names}}
+        {"seed": i, "cycle": first_cycle + c, **{n: json_number(cyc[n][i][c]) for n in names}}
         for i in range(num_seeds) for c in range(num_cycles)
     ]
 
