@@ -8,7 +8,7 @@ os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
 def _session_compile_cache() -> None:
     """One persistent compile cache for the whole test session, in a folder made for it (never
-    ~/.cache, never warm from an earlier session), shared by the xdist workers and the subprocesses
+    ~/.cache, never warm from an earlier pytest run), shared by the xdist workers and the subprocesses
     the tests start (they inherit the variables): a program that several tests compile with the same
     shapes (the tiny runs of tests/helpers.py) compiles once and loads afterwards. The size limit
     makes JAX's cache take its file lock, so workers do not read each other's half-written entries.

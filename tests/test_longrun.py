@@ -106,7 +106,7 @@ def test_a_run_loaded_from_the_compile_cache_equals_a_compiled_one(reference, tm
         assert "(compile cache off)" in capsys.readouterr().out
         assert compile_cache.current() is None
         assert json.loads(open(tmp_path / "off" / "summary.json").read())["compile_cache"] is None
-    finally:  # later tests in this process: JAX's defaults and the session's choice (conftest: off)
+    finally:  # later tests in this process: JAX's defaults and the pytest run's cache (conftest.py)
         jax.config.update("jax_persistent_cache_min_compile_time_secs", min_secs)
         compile_cache.enable(compile_cache.resolve(None))
 
