@@ -428,10 +428,15 @@ class Signals:
     flight, checkpoints and exits 130. A second Ctrl-C, or SIGTERM, raises ``Stopped`` at once (exit
     130 / 143): a scheduler that sends SIGTERM may kill the process soon after, and the chunk in flight
     cannot be saved (the state it started from was donated to it). ``wait`` blocks on a chunk's
-    results in short sleeps, so that a signal is handled while a chunk runs, not only after it."""
+    results in short sleeps, so that a signal is handled while a chunk runs, not only after it.
+
+    Python runs a handler wherever the main thread is, also inside a garbage-collection callback or a
+    ``__del__``, where an exception is printed and dropped ("Exception ignored in ..."): so the handler
+    also keeps the stop in ``stopped``, and ``wait`` and ``check`` raise it again."""
 
     def __init__(self):
         self.requested = False
+        self.stopped: Stopped | None = None
         self.in_flight = None  # the 1-based chunk the loop is running, for the stop line
         self._old = {}
 
@@ -441,7 +446,8 @@ class Signals:
             print("\ninterrupt: finishing the current chunk, then checkpointing (Ctrl-C again to stop at once)",
                   file=sys.stderr, flush=True)
             return
-        raise Stopped(signum)
+        self.stopped = Stopped(signum)
+        raise self.stopped
 
     def __enter__(self):
         for signum in (signal.SIGINT, signal.SIGTERM):
@@ -453,16 +459,23 @@ class Signals:
             signal.signal(signum, old)
         return False
 
-    @staticmethod
-    def wait(tree):
+    def check(self) -> None:
+        """Raises the ``Stopped`` a handler raised where it was dropped, if any."""
+        if self.stopped is not None:
+            raise self.stopped
+
+    def wait(self, tree):
         """Returns ``tree`` once every array in it is computed (signal handlers run meanwhile)."""
         import jax
 
         pause = 1e-3
+        self.check()
         for leaf in jax.tree.leaves(tree):
             while hasattr(leaf, "is_ready") and not leaf.is_ready():
                 time.sleep(pause)
                 pause = min(2 * pause, 0.05)
+                self.check()
+        self.check()
         return tree
 
 

@@ -3,6 +3,8 @@ import os
 import shutil
 import tempfile
 
+import pytest
+
 os.environ.setdefault("JAX_PLATFORMS", "cpu")
 
 
@@ -23,6 +25,17 @@ def _session_compile_cache() -> None:
 
 
 _session_compile_cache()
+
+
+@pytest.fixture(autouse=True)
+def _back_to_the_session_compile_cache():
+    """After each test, this process compiles into the pytest run's cache again: a test that runs
+    ``experiments.run`` or ``experiments.sweep`` in-process with ``--compile-cache=off`` or a folder of its
+    own leaves JAX pointed there, and every later test in that worker would compile afresh."""
+    yield
+    from metapg_jax import compile_cache
+
+    compile_cache.enable(compile_cache.resolve(None))
 
 
 # The modules whose tests take longest on 2 cores (measured with --durations), started first so that the

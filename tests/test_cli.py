@@ -239,6 +239,29 @@ def test_the_stop_line_after_a_checkpoint_names_the_resume():
     assert run.Stopped(signal.SIGINT).status == 130 and run.Stopped(signal.SIGTERM).status == 143
 
 
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # the drop this test makes
+def test_a_stop_that_python_dropped_is_raised_by_the_next_wait():
+    """A SIGTERM handled inside a garbage-collection callback: Python prints and drops the handler's
+    exception there (seen in this suite: the run then trained on and exited 0); the loop's next ``wait``
+    raises it."""
+    import gc
+    import signal
+
+    import numpy as np
+
+    signals = run.Signals()
+
+    class Collected:
+        def __del__(self):
+            signals._handler(signal.SIGTERM, None)  # raises Stopped, which Python drops here
+
+    Collected()
+    gc.collect()
+    assert isinstance(signals.stopped, run.Stopped)
+    with pytest.raises(run.Stopped, match="SIGTERM"):
+        signals.wait({"x": np.zeros(2)})
+
 def test_a_resume_keeps_the_stored_engine(tmp_path):
     """--physics=auto (the default) is stored resolved; a resume keeps the stored engine, also for a run
     stored before --physics existed (its config's engine); an explicit --physics wins for a new run."""

@@ -106,9 +106,8 @@ def test_a_run_loaded_from_the_compile_cache_equals_a_compiled_one(reference, tm
         assert "(compile cache off)" in capsys.readouterr().out
         assert compile_cache.current() is None
         assert json.loads(open(tmp_path / "off" / "summary.json").read())["compile_cache"] is None
-    finally:  # later tests in this process: JAX's defaults and the pytest run's cache (conftest.py)
+    finally:  # later tests in this process: JAX's default (conftest.py puts the pytest run's cache back)
         jax.config.update("jax_persistent_cache_min_compile_time_secs", min_secs)
-        compile_cache.enable(compile_cache.resolve(None))
 
 
 def test_compile_cache_folder_choice(tmp_path, monkeypatch):

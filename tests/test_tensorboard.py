@@ -90,24 +90,19 @@ def assert_events_match_jsonl(out, num_seeds, chunks):
 
 def test_tensorboard_holds_the_jsonl_numbers_per_seed_and_a_resume_appends_once(tmp_path):
     pytest.importorskip("tensorboardX")
-    from metapg_jax import compile_cache
-
     out = str(tmp_path / "run")
-    cache = ["--compile-cache", str(tmp_path / "xla")]  # the resume loads the program the first call compiled
-    try:
-        assert run.main(TINY + ["--steps=600", "--out", out] + cache) == 0
-        assert_events_match_jsonl(out, num_seeds=2, chunks=2)
-        stored = json.load(open(os.path.join(out, "config.json")))
-        assert "tensorboard" not in stored["run_args"]  # output only: a resume may add or leave it out
-        # As after a kill: the last checkpoint is gone, so the resume runs chunk 2 again, whose events
-        # (and rows) were written already.
-        ck = Checkpointer(os.path.join(out, "checkpoints"))
-        assert ck.steps() == [1, 2]
-        ck.manager.delete(2)
-        ck.close()
-        assert run.main(["--resume", out, "--quiet", "--no-plot", "--tensorboard"] + cache) == 0
-    finally:  # later tests in this process: the session's choice (conftest: off)
-        compile_cache.enable(compile_cache.resolve(None))
+    # (The resume loads the program the first call compiled from the pytest run's compile cache, conftest.py.)
+    assert run.main(TINY + ["--steps=600", "--out", out]) == 0
+    assert_events_match_jsonl(out, num_seeds=2, chunks=2)
+    stored = json.load(open(os.path.join(out, "config.json")))
+    assert "tensorboard" not in stored["run_args"]  # output only: a resume may add or leave it out
+    # As after a kill: the last checkpoint is gone, so the resume runs chunk 2 again, whose events
+    # (and rows) were written already.
+    ck = Checkpointer(os.path.join(out, "checkpoints"))
+    assert ck.steps() == [1, 2]
+    ck.manager.delete(2)
+    ck.close()
+    assert run.main(["--resume", out, "--quiet", "--no-plot", "--tensorboard"]) == 0
     assert_events_match_jsonl(out, num_seeds=2, chunks=2)  # chunk 2 once, the resumed call's numbers
     for seed in range(2):  # the same folders, a second event file each
         assert len(os.listdir(os.path.join(out, "tensorboard", f"seed_{seed}"))) == 2
