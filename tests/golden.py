@@ -57,18 +57,42 @@ def case_config(name: str):
         **({"meta.explore_steps": 50, "meta.eval_steps": 100} if method == "meta" else {})})
 
 
+# The seeds of every case (seed_keys(*KEYS)).
+KEYS = (7, 2)
+
+
 def compute(name: str) -> dict:
     """Evaluation returns per chunk (seeds x episodes) and a hash of the final student parameters."""
     trainer = make_train(case_config(name))
-    state = jax.jit(vmap_seeds(trainer.init))(seed_keys(7, 2))
+    state = jax.jit(vmap_seeds(trainer.init))(seed_keys(*KEYS))
     chunk = jax.jit(vmap_seeds(trainer.train_chunk))
     returns = []
     for _ in range(trainer.config.num_chunks):
         state, metrics = chunk(state)
-        returns.append(np.asarray(metrics["eval_return"]).tolist())
+        returns.append(np.asarray(metrics["eval_return"]))
+    return numbers(returns, state)
+
+
+def numbers(returns, state) -> dict:
+    """A case's numbers from its chunks' evaluation returns and its final state (``compute``; the tests
+    that run a case's chunks for their own checks pass theirs)."""
     leaves = jax.tree.leaves(jax.device_get(state.student))
     digest = hashlib.sha256(b"".join(np.ascontiguousarray(x).tobytes() for x in leaves)).hexdigest()
-    return {"eval_return": returns, "student_sha256": digest}
+    return {"eval_return": [np.asarray(r).tolist() for r in returns], "student_sha256": digest}
+
+
+def assert_stored(name: str, got: dict) -> None:
+    """``got`` (``numbers``) equals the stored numbers of case ``name``: bit for bit, parameters included,
+    on a machine like the one that wrote the file (same CPU and JAX version), else the returns to a
+    tolerance (XLA may round float32 differently elsewhere)."""
+    with open(PATH) as f:
+        stored = json.load(f)
+    want = stored["cases"][name]
+    if stored["machine"] == machine():
+        assert got["eval_return"] == want["eval_return"], name
+        assert got["student_sha256"] == want["student_sha256"], name
+    else:
+        np.testing.assert_allclose(got["eval_return"], want["eval_return"], rtol=1e-3, atol=1e-3, err_msg=name)
 
 
 def machine() -> dict:

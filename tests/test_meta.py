@@ -1,5 +1,7 @@
 """The teacher and Algorithm 1: log-prob gradients, REINFORCE direction, look-ahead isolation, accounting."""
 
+import functools
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -13,6 +15,14 @@ from metapg_jax.train import make_train
 from tests.helpers import tiny_config
 
 DESIGNS = [("independent", True), ("variance", True), ("variance", False)]
+
+
+@functools.lru_cache(maxsize=None)
+def _tiny_meta():
+    """The tiny Meta config's trainer and its jitted cycle (one seed), compiled once per process for the
+    tests here that run it."""
+    trainer = make_train(tiny_config("meta", steps=600))
+    return trainer, jax.jit(trainer.cycle)
 
 
 def _teacher(design, state_dependent, **kw):
@@ -119,8 +129,7 @@ def test_a_zero_learning_rate_freezes_the_teacher_and_nothing_else():
     new = cycle(cycle(state)[0])[0]
     assert all(jax.tree.leaves(jax.tree.map(np.array_equal, state.explorer.params, new.explorer.params)))
     assert not all(jax.tree.leaves(jax.tree.map(np.array_equal, state.student.actor, new.student.actor)))
-    learner = make_train(tiny_config("meta", steps=600))  # the same run with the preset's lr: the teacher moves
-    learn = jax.jit(learner.cycle)
+    learner, learn = _tiny_meta()  # the same run with the preset's lr: the teacher moves
     learning = learn(learn(learner.init(jax.random.PRNGKey(0)))[0])[0]
     assert not all(jax.tree.leaves(jax.tree.map(np.array_equal, state.explorer.params, learning.explorer.params)))
     with pytest.raises(ValueError, match="meta.lr must be a finite number >= 0"):
@@ -130,11 +139,14 @@ def test_a_zero_learning_rate_freezes_the_teacher_and_nothing_else():
 @pytest.mark.parametrize("baseline,eval_envs", [("lookahead", 1), ("lookahead", 2), ("fresh", 1)])
 def test_sample_accounting(baseline, eval_envs):
     per_cycle = 50 + 100 * eval_envs * (2 if baseline == "fresh" else 1)
-    cfg = tiny_config("meta", steps=4 * per_cycle, eval_every=2 * per_cycle,
-                      **{"meta.baseline": baseline, "meta.eval_envs": eval_envs})
-    trainer = make_train(cfg)
+    if (baseline, eval_envs) == ("lookahead", 1):
+        trainer, cycle = _tiny_meta()
+    else:
+        trainer = make_train(tiny_config("meta", steps=4 * per_cycle, eval_every=2 * per_cycle,
+                                         **{"meta.baseline": baseline, "meta.eval_envs": eval_envs}))
+        cycle = jax.jit(trainer.cycle)
+    cfg = trainer.config
     state = trainer.init(jax.random.PRNGKey(0))
-    cycle = jax.jit(trainer.cycle)
     n = 2
     for _ in range(n):
         state, m = cycle(state)
@@ -150,10 +162,8 @@ def test_first_episode_return_truncates_at_the_first_end():
 
 
 def test_meta_reward_is_zero_until_a_baseline_exists_then_the_difference():
-    cfg = tiny_config("meta", steps=300)
-    trainer = make_train(cfg)
+    trainer, cycle = _tiny_meta()
     state = trainer.init(jax.random.PRNGKey(0))
-    cycle = jax.jit(trainer.cycle)
     state, m0 = cycle(state)
     assert float(m0["meta_reward"]) == 0.0
     state, m1 = cycle(state)

@@ -19,7 +19,11 @@ TINY = ["--env=pendulum", "--method=meta", "--seeds=2", "--steps=600", "--quiet"
         "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
         "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--set", "ddpg.batch_size=16",
         "--set", "run.train_steps=5", "--set", "meta.explore_steps=50", "--set", "meta.eval_steps=100",
-        "--set", "env.episode_length=60"]
+        "--set", "env.episode_length=60",
+        # A fixed replay capacity: the sweeps below run one program whatever their budget (the pytest run's
+        # compile cache, conftest.py, compiles it once).
+        "--set", "run.buffer_size=900"]
+GRID = ["--grid", "meta.lr=1e-4,1e-2", "--grid", "ddpg.tau=0.01,0.5"]
 
 
 def _rows(path):
@@ -28,8 +32,7 @@ def _rows(path):
 
 def test_a_sweep_equals_separate_runs_of_its_settings(tmp_path):
     out = str(tmp_path / "sweep")
-    grid = ["--grid", "meta.lr=1e-4,1e-2", "--grid", "ddpg.tau=0.01,0.5"]
-    assert sweep.main([*TINY, *grid, "--out", out, "--no-plot"]) == 0
+    assert sweep.main([*TINY, *GRID, "--out", out, "--no-plot"]) == 0
     stored = json.load(open(os.path.join(out, "sweep.json")))
     assert len(stored["settings"]) == 4 and len(stored["groups"]) == 1  # one program for all 4 x 2 runs
     assert stored["groups"][0]["batched"] == ["meta.lr", "ddpg.tau"]
@@ -91,7 +94,7 @@ def test_bad_grids_are_refused_before_compiling(grid, message, tmp_path, capsys)
 
 
 def test_an_interrupted_sweep_resumes_to_the_numbers_of_an_uninterrupted_one(tmp_path, monkeypatch):
-    grid = ["--grid", "meta.lr=1e-4,1e-2", "--steps=900", "--no-plot", f"--compile-cache={tmp_path / 'xla'}"]
+    grid = [*GRID, "--steps=900", "--no-plot"]
     whole, part = str(tmp_path / "whole"), str(tmp_path / "part")
     assert sweep.main([*TINY, *grid, "--out", whole]) == 0
     write = reporting.JsonlWriter.write
@@ -106,7 +109,7 @@ def test_an_interrupted_sweep_resumes_to_the_numbers_of_an_uninterrupted_one(tmp
     assert sweep.main([*TINY, *grid, "--out", part]) == 130
     monkeypatch.setattr(reporting.JsonlWriter, "write", write)
     assert not os.path.exists(os.path.join(part, "summary.json"))
-    assert sweep.main(["--resume", part, "--quiet", "--no-plot", f"--compile-cache={tmp_path / 'xla'}"]) == 0
+    assert sweep.main(["--resume", part, "--quiet", "--no-plot"]) == 0
     key = lambda r: (r["setting"], r["seed"], r["chunk"])
     strip = lambda rows: sorted(({k: v for k, v in r.items() if k not in ("wall_time", "chunk_seconds")}
                                  for r in rows), key=key)

@@ -1,7 +1,6 @@
 """TD3 (metapg_jax/td3.py): the clipped double-Q target, target smoothing, delayed actor and target
 updates, and TD3 as the student of both explorers and of the command line."""
 
-import dataclasses
 import json
 import os
 
@@ -15,7 +14,7 @@ from metapg_jax.config import DDPGConfig, TD3Config, make_config
 from metapg_jax.td3 import TD3
 from metapg_jax.train import make_train, seed_keys, vmap_seeds
 from metapg_jax.types import Transition
-from tests.helpers import tiny_config
+from tests import golden
 
 
 def _student(**td3):
@@ -91,17 +90,22 @@ def test_critic_loss_is_the_sum_of_both_critics_mse():
 
 
 def test_td3_trains_as_the_student_of_the_noise_explorer_deterministically():
-    """(Meta's explorer: test_meta_on_td3_compiles_once_stays_finite_and_chunked_equals_the_single_scan.)"""
-    cfg = dataclasses.replace(tiny_config("ddpg"), student="td3")
-    trainer = make_train(cfg)
+    """The same key twice gives the same numbers, the case's stored ones (tests/golden.py). (Meta's
+    explorer: test_meta_on_td3_compiles_once_stays_finite_and_chunked_equals_the_single_scan.)"""
+    case = "pendulum-ddpg-normal-td3"
+    trainer = make_train(golden.case_config(case))
     assert isinstance(trainer.student, TD3)
+    init, chunk = jax.jit(vmap_seeds(trainer.init)), jax.jit(vmap_seeds(trainer.train_chunk))
     runs = []
     for _ in range(2):
-        state = jax.jit(vmap_seeds(trainer.init))(seed_keys(0, 2))
-        state, metrics = jax.jit(vmap_seeds(trainer.train_chunk))(state)
-        runs.append(np.asarray(metrics["eval_return"]))
-    np.testing.assert_array_equal(runs[0], runs[1])
-    assert np.all(np.asarray(metrics["cycle"]["finite"]))
+        state, returns = init(seed_keys(*golden.KEYS)), []
+        for _ in range(trainer.config.num_chunks):
+            state, metrics = chunk(state)
+            returns.append(np.asarray(metrics["eval_return"]))
+            assert np.all(np.asarray(metrics["cycle"]["finite"]))
+        runs.append(golden.numbers(returns, state))
+    assert runs[0] == runs[1]
+    golden.assert_stored(case, runs[0])
     assert np.all(np.asarray(state.student.step) > 0)
 
 
@@ -116,28 +120,14 @@ def test_modern_td3_preset_has_the_authors_settings():
         make_config("hopper", "ddpg", "modern", student="sac")
 
 
-def test_cli_runs_td3_and_exports_its_policy(tmp_path):
-    from experiments import run
-    from metapg_jax import load_policy
-
-    out = str(tmp_path / "td3")
-    argv = ["--env=pendulum", "--method=meta", "--student=td3", "--seeds=2", "--steps=600", "--quiet", "--no-plot",
-            "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
-            "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--out", out]
-    assert run.main(argv) == 0
-    stored = json.load(open(os.path.join(out, "config.json")))
-    assert stored["config"]["student"] == "td3" and stored["run_args"]["student"] == "td3"
-    act = load_policy(os.path.join(out, "policy.npz"), seed=1)
-    assert act(np.zeros(3, np.float32)).shape == (1,)
-    assert run.main(["--env=pendulum", "--student=sac", "--out", str(tmp_path / "x")]) == 2
-
-
 def test_meta_on_td3_compiles_once_stays_finite_and_chunked_equals_the_single_scan():
-    """Also: TD3 trains as the student of the Meta explorer, deterministically (the same key twice)."""
-    cfg = dataclasses.replace(tiny_config("meta"), student="td3")
+    """Also: TD3 trains as the student of the Meta explorer, deterministically (the same key twice), to
+    the case's stored numbers (tests/golden.py)."""
+    case = "pendulum-meta-independent-td3"
+    cfg = golden.case_config(case)
     trainer = make_train(cfg)
     assert isinstance(trainer.student, TD3)
-    keys = seed_keys(3, 2)
+    keys = seed_keys(*golden.KEYS)
     full_state, full_metrics = jax.jit(vmap_seeds(trainer.train))(keys)
     chunk = jax.jit(vmap_seeds(chex.assert_max_traces(n=1)(trainer.train_chunk)))
     state = jax.jit(vmap_seeds(trainer.init))(keys)
@@ -146,6 +136,7 @@ def test_meta_on_td3_compiles_once_stays_finite_and_chunked_equals_the_single_sc
         state, metrics = chunk(state)
         returns.append(np.asarray(metrics["eval_return"]))
         assert np.all(np.asarray(metrics["cycle"]["finite"]))
+    golden.assert_stored(case, golden.numbers(returns, state))
     again = chunk(jax.jit(vmap_seeds(trainer.init))(keys))[1]  # the same program again: no new trace
     np.testing.assert_array_equal(np.asarray(again["eval_return"]), returns[0])
     chex.clear_trace_counter()
@@ -158,13 +149,15 @@ def test_meta_on_td3_compiles_once_stays_finite_and_chunked_equals_the_single_sc
 
 def test_meta_on_td3_resumed_gives_the_numbers_of_one_run(tmp_path):
     """From a checkpoint (the TD3 state's own key and update count included) to the same numbers bit for
-    bit: a 600-step run extended to 900 steps equals a run started at 900."""
+    bit: a 600-step run extended to 900 steps equals a run started at 900. The command line stores the
+    student, exports TD3's policy and refuses a student it does not have."""
     from experiments import run
+    from metapg_jax import load_policy
 
     tiny = ["--env=pendulum", "--method=meta", "--student=td3", "--seeds=2", "--quiet", "--no-plot",
             "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
             "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16",
-            # A fixed replay capacity: the three calls run one program (the session's compile cache loads it).
+            # A fixed replay capacity: the three calls run one program (the pytest run's compile cache loads it).
             "--set", "run.buffer_size=900"]
     one, two = str(tmp_path / "one"), str(tmp_path / "two")
     assert run.main([*tiny, "--steps=900", "--out", one]) == 0
@@ -177,3 +170,8 @@ def test_meta_on_td3_resumed_gives_the_numbers_of_one_run(tmp_path):
     assert sorted(a.files) == sorted(b.files)
     for name in a.files:
         np.testing.assert_array_equal(a[name], b[name])
+    stored = json.load(open(os.path.join(one, "config.json")))
+    assert stored["config"]["student"] == "td3" and stored["run_args"]["student"] == "td3"
+    act = load_policy(os.path.join(one, "policy.npz"), seed=1)
+    assert act(np.zeros(3, np.float32)).shape == (1,)
+    assert run.main(["--env=pendulum", "--student=sac", "--out", str(tmp_path / "x")]) == 2

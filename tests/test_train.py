@@ -1,5 +1,7 @@
 """The compiled training loop: one compile, finite state, chunked == single scan, learning."""
 
+import functools
+
 import chex
 import jax
 import jax.numpy as jnp
@@ -8,6 +10,7 @@ import pytest
 
 from metapg_jax.config import make_config
 from metapg_jax.train import make_train, seed_keys, vmap_seeds
+from tests import golden
 from tests.helpers import tiny_config
 
 
@@ -17,18 +20,26 @@ def _strip_nan(state):
         if hasattr(state.explorer, "r_hat") else state
 
 
-@pytest.mark.parametrize("method, env, physics", [("ddpg", "pendulum", "mjx"), ("meta", "pendulum", "mjx"),
-                                                  ("meta", "inverted_pendulum", "mujoco")])
-def test_chunked_and_single_scan_agree(method, env, physics):
+@functools.lru_cache(maxsize=None)
+def _program(case):
+    """A golden case's trainer and its single-scan program (``train``, seeds vmapped): compiled once per
+    process for the tests here that run it."""
+    trainer = make_train(golden.case_config(case))
+    return trainer, jax.jit(vmap_seeds(trainer.train))
+
+
+@pytest.mark.parametrize("case", ["pendulum-ddpg-adaptive-param", "pendulum-meta-independent",
+                                  "idp-meta-independent-mujoco"])
+def test_chunked_and_single_scan_agree(case):
     """The chunk compiles once and its state stays finite; the same key gives the same numbers twice, and
-    chunked equals the single scan. Also on MuJoCo's C engine (envs/mujoco_c.py), whose state is float64
-    words and whose steps are host calls (with Meta, whose cycle steps every kind of rollout)."""
-    cfg = tiny_config(method, env=env, physics=physics)
-    trainer = make_train(cfg)
-    if physics == "mujoco":
+    chunked equals the single scan; the chunks give the case's stored numbers (tests/golden.py). Also on
+    MuJoCo's C engine (envs/mujoco_c.py), whose state is float64 words and whose steps are host calls
+    (with Meta, whose cycle steps every kind of rollout)."""
+    trainer, train = _program(case)
+    cfg = trainer.config
+    if cfg.env.physics == "mujoco":
         assert trainer.env.unwrapped.backend == "mujoco"
-    keys = seed_keys(1, 2)
-    train = jax.jit(vmap_seeds(trainer.train))
+    keys = seed_keys(*golden.KEYS)
     full_state, full_metrics = train(keys)
     for a, b in zip(jax.tree.leaves((full_state, full_metrics)), jax.tree.leaves(train(keys))):
         np.testing.assert_array_equal(a, b)
@@ -39,25 +50,25 @@ def test_chunked_and_single_scan_agree(method, env, physics):
         state, m = chunk(state)
         returns.append(np.asarray(m["eval_return"]))
     chex.clear_trace_counter()
+    golden.assert_stored(case, golden.numbers(returns, state))
     chex.assert_tree_all_finite(_strip_nan(state))
     assert int(state.env_steps[0]) == cfg.run.total_steps
     np.testing.assert_allclose(np.stack(returns, 1), full_metrics["eval_return"], rtol=1e-5, atol=1e-4)
-    # The two programs round differently (XLA fuses them differently); on IP's float64 physics a last-bit
-    # difference in an action grows over the episode more than on Pendulum: measured 1.4e-5 on one weight.
-    atol = 1e-5 if physics == "mjx" else 1e-4
+    # The two programs round differently (XLA fuses them differently); on the C engine's float64 physics a
+    # last-bit difference in an action grows over the episode more than on Pendulum: measured 1.4e-5 on one
+    # weight of Inverted Pendulum.
+    atol = 1e-5 if cfg.env.physics == "mjx" else 1e-4
     jax.tree.map(lambda a, b: np.testing.assert_allclose(a, b, rtol=1e-5, atol=atol),
                  state.student.actor, full_state.student.actor)
 
 
 def test_seeds_differ_and_do_not_depend_on_seed_count():
-    cfg = tiny_config("ddpg", steps=300)
-    trainer = make_train(cfg)
-    run = jax.jit(vmap_seeds(trainer.train))
-    s3, _ = run(seed_keys(0, 3))
-    s1, _ = run(seed_keys(0, 1))
+    trainer, train = _program("pendulum-ddpg-adaptive-param")
+    s2, _ = train(seed_keys(0, 2))
+    s1, _ = jax.jit(vmap_seeds(trainer.train))(seed_keys(0, 1))
     k = lambda s: np.asarray(s.student.actor["params"]["dense_0"]["kernel"])
-    assert not np.allclose(k(s3)[0], k(s3)[1])
-    np.testing.assert_allclose(k(s3)[0], k(s1)[0], rtol=1e-6)
+    assert not np.allclose(k(s2)[0], k(s2)[1])
+    np.testing.assert_allclose(k(s2)[0], k(s1)[0], rtol=1e-6)
 
 
 def test_warmup_uses_random_actions_and_skips_updates():
@@ -116,11 +127,10 @@ def test_any_over_seeds_reduces_the_named_seed_axis_only():
 def test_param_noise_episode_starts_same_numbers_with_named_seed_axis():
     # vmap_seeds draws a new actor perturbation only on steps where some seed starts an episode;
     # a plain vmap draws it at every step and keeps it where an episode starts. Same numbers.
-    cfg = tiny_config("ddpg", steps=600)
-    assert cfg.noise.kind == "adaptive-param"
-    trainer = make_train(cfg)
-    a = jax.jit(vmap_seeds(trainer.train))(seed_keys(0, 3))
-    b = jax.jit(jax.vmap(trainer.train))(seed_keys(0, 3))
+    trainer, train = _program("pendulum-ddpg-adaptive-param")
+    assert trainer.config.noise.kind == "adaptive-param"
+    a = train(seed_keys(0, 2))
+    b = jax.jit(jax.vmap(trainer.train))(seed_keys(0, 2))
     for x, y in zip(jax.tree.leaves(a), jax.tree.leaves(b)):
         np.testing.assert_array_equal(np.asarray(x), np.asarray(y))
     perturbed = a[0].explorer.perturbed
