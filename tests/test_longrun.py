@@ -271,28 +271,28 @@ def test_resume_with_another_config_is_refused_naming_the_fields(reference, caps
     assert "no config.json" in capsys.readouterr().err
 
 
-def test_seed_results_do_not_depend_on_the_device_count(tmp_path):
-    # The same 2 seeds on 1 device and on 2 devices (one each). Not bitwise: XLA compiles the
-    # vmapped program for other batch shapes (1 or 2 seeds per device, or 4 seeds in total),
-    # which changes float32 round-off (~1e-7 relative), and RL training amplifies round-off over
+def test_seed_results_do_not_depend_on_the_device_count(tmp_path, monkeypatch, capsys):
+    # The same 2 seeds on 1 device (here) and on 2 devices (one each, a process of its own). Not bitwise:
+    # XLA compiles the vmapped program for other batch shapes (1 or 2 seeds per device, or 4 seeds in
+    # total), which changes float32 round-off (~1e-7 relative), and RL training amplifies round-off over
     # many updates (measured 4e-4 after 3 cycles of 50 updates). So compare after one cycle.
     one, two = str(tmp_path / "one_device"), str(tmp_path / "two_devices")
-    flags = {"XLA_FLAGS": "--xla_force_host_platform_device_count=2"}
-    p1 = _subprocess(TINY + ["--steps=300", "--out", one])
-    p2 = _subprocess(TINY + ["--steps=300", "--out", two], env=flags)
-    out1, err1 = p1.communicate(timeout=600)
+    p2 = _subprocess(TINY + ["--steps=300", "--out", two], env={"XLA_FLAGS": "--xla_force_host_platform_device_count=2"})
+    assert run.main(TINY + ["--steps=300", "--out", one]) == 0
     out2, err2 = p2.communicate(timeout=600)
-    assert p1.returncode == 0, err1[-3000:]
     assert p2.returncode == 0, err2[-3000:]
-    assert "on 1 cpu device(s)" in out1 and "on 2 cpu device(s)" in out2
+    assert "on 1 cpu device(s)" in capsys.readouterr().out and "on 2 cpu device(s)" in out2
     a, b = _policy_arrays(one), _policy_arrays(two)
     for k in a:
         np.testing.assert_allclose(a[k], b[k], rtol=1e-4, atol=1e-6, err_msg=k)
     # ... while different seeds differ by orders of magnitude more.
     assert np.abs(a["actor/dense_0/kernel"][0] - a["actor/dense_0/kernel"][1]).max() > 1e-2
-    bad = _subprocess(TINY + ["--steps=900", "--seeds=3", "--out", str(tmp_path / "x")], env=flags)
-    _, err = bad.communicate(timeout=300)
-    assert bad.returncode == 2 and "not a multiple of the 2 devices" in err
+    # A seed count the devices do not divide is refused before anything is written (two processes:
+    # tests/test_multiprocess.py).
+    monkeypatch.setattr(jax, "device_count", lambda: 2)
+    assert run.main(TINY + ["--steps=900", "--seeds=3", "--out", str(tmp_path / "x")]) == 2
+    assert "--seeds=3 is not a multiple of the 2 devices" in capsys.readouterr().err
+    assert not os.path.exists(tmp_path / "x")
 
 
 def test_nan_guard_names_the_seed_and_stops(tmp_path, capsys):

@@ -2,13 +2,12 @@
 CPU processes on 127.0.0.1 (JAX_COORDINATOR_ADDRESS, JAX_NUM_PROCESSES, JAX_PROCESS_ID, as on a cluster;
 one CPU device each), each owning its shard of the seed axis.
 
-What holds (tested here): process 0 alone writes the outputs, which cover every seed; the numbers are
-those of one process with as many devices as the job has, bit for bit (each device holds one seed's
-shard either way; one process on one device gives them up to float32 round-off, as XLA compiles a
-batch of 2 seeds differently from a batch of 1: ``tests/test_longrun.py``); the checkpoints the processes write together restore
-after one of them is killed with SIGKILL and the whole job is started again with ``--resume``, to the
-numbers of the uninterrupted job; a seed count the processes' devices do not divide is refused before
-anything compiles.
+What holds (tested here, by one job killed with SIGKILL and started again with ``--resume``): the
+checkpoints the processes write together restore; process 0 alone writes the outputs, which cover every
+seed; the numbers are those of one uninterrupted process with as many devices as the job has, bit for
+bit (each device holds one seed's shard either way; one process on one device gives them up to float32
+round-off, as XLA compiles a batch of 2 seeds differently from a batch of 1: ``tests/test_longrun.py``).
+A seed count the processes' devices do not divide is refused before anything compiles.
 """
 
 import json
@@ -69,13 +68,6 @@ def _wait(procs, tmp_path, tag):
     return codes, logs
 
 
-def _single(argv, devices):
-    env = _env(XLA_FLAGS=f"--xla_force_host_platform_device_count={devices}")
-    done = subprocess.run([sys.executable, "-m", "experiments.run", *argv], cwd=ROOT, env=env, capture_output=True,
-                          text=True, timeout=TIMEOUT)
-    assert done.returncode == 0, done.stderr[-3000:]
-
-
 def _rows(out):
     return [json.loads(line) for line in open(os.path.join(out, "metrics.jsonl"))]
 
@@ -89,35 +81,15 @@ def _policy(out):
         return {k: p[k] for k in p.files}
 
 
-@pytest.fixture(scope="session")  # built once per xdist worker, whatever runs in between
-def two_process_run(tmp_path_factory):
-    tmp_path = tmp_path_factory.mktemp("multiprocess")
+def test_a_two_process_job_killed_mid_run_resumes_to_the_numbers_of_one_process_with_two_devices(tmp_path):
+    """The job is killed (SIGKILL, process 1 first) once two checkpoints are written and started again with
+    ``--resume``; its outputs, written by process 0 alone and covering every seed, equal bit for bit those
+    of one uninterrupted process with two devices. (One process with two devices runs beside it.)"""
+    reference = str(tmp_path / "two-devices")
+    env = _env(XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    single = subprocess.Popen([sys.executable, "-m", "experiments.run", *TINY, "--out", reference], cwd=ROOT,
+                              env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     out = str(tmp_path / "job")
-    codes, logs = _wait(_start_job([*TINY, "--out", out], tmp_path, "job"), tmp_path, "job")
-    assert codes == [0, 0], logs
-    return tmp_path, out, logs
-
-
-def test_two_processes_write_once_and_equal_one_process_with_two_devices(two_process_run):
-    tmp_path, out, logs = two_process_run
-    assert "on 2 cpu device(s)" in logs[0] and "final return" in logs[0]
-    assert "final return" not in logs[1]  # process 1 trains its shard and writes nothing
-    rows = _rows(out)
-    assert sorted((r["seed"], r["chunk"]) for r in rows) == [(s, c) for s in range(2) for c in range(5)]
-    summary = json.load(open(os.path.join(out, "summary.json")))
-    assert summary["num_seeds"] == 2 and len(summary["final_return_per_seed"]) == 2
-    assert len(json.load(open(os.path.join(out, "config.json")))["devices"]) == 2  # the job's devices
-
-    two_devices = str(tmp_path / "two-devices")
-    _single([*TINY, "--out", two_devices], devices=2)
-    assert _numbers(out) == _numbers(two_devices)            # bit for bit
-    for k, v in _policy(out).items():
-        np.testing.assert_array_equal(v, _policy(two_devices)[k])
-
-
-def test_a_job_killed_mid_run_resumes_to_the_numbers_of_the_uninterrupted_one(two_process_run):
-    tmp_path, reference, _ = two_process_run
-    out = str(tmp_path / "killed")
     procs = _start_job([*TINY, "--out", out], tmp_path, "killed")
     deadline = time.time() + TIMEOUT
     checkpoints = os.path.join(out, "checkpoints")
@@ -126,7 +98,9 @@ def test_a_job_killed_mid_run_resumes_to_the_numbers_of_the_uninterrupted_one(tw
         if len(steps) >= 2 or any(p.poll() is not None for p in procs):
             break
         time.sleep(0.2)
-    assert all(p.poll() is None for p in procs), "the job ended before it could be killed"
+    assert all(p.poll() is None for p in procs), "the job ended before it could be killed: " + \
+        (tmp_path / "killed-0.log").read_text()[-3000:]
+    assert "on 2 cpu device(s)" in (tmp_path / "killed-0.log").read_text()  # the job's devices
     procs[1].send_signal(signal.SIGKILL)
     procs[0].send_signal(signal.SIGKILL)  # the scheduler tears the job down
     for p in procs:
@@ -135,8 +109,17 @@ def test_a_job_killed_mid_run_resumes_to_the_numbers_of_the_uninterrupted_one(tw
     codes, logs = _wait(_start_job(["--quiet", "--no-plot", "--checkpoint-every=1", "--resume", out], tmp_path,
                                    "resumed"), tmp_path, "resumed")
     assert codes == [0, 0], logs
-    assert "resumed after" in logs[0]
-    assert _numbers(out) == _numbers(reference)
+    assert "resumed after" in logs[0] and "final return" in logs[0]
+    assert "final return" not in logs[1]  # process 1 trains its shard and writes nothing
+    rows = _rows(out)
+    assert sorted((r["seed"], r["chunk"]) for r in rows) == [(s, c) for s in range(2) for c in range(5)]
+    summary = json.load(open(os.path.join(out, "summary.json")))
+    assert summary["num_seeds"] == 2 and len(summary["final_return_per_seed"]) == 2
+    assert len(json.load(open(os.path.join(out, "config.json")))["devices"]) == 2  # the job's devices
+
+    _, err = single.communicate(timeout=TIMEOUT)
+    assert single.returncode == 0, err[-3000:]
+    assert _numbers(out) == _numbers(reference)            # bit for bit
     for k, v in _policy(out).items():
         np.testing.assert_array_equal(v, _policy(reference)[k])
 
