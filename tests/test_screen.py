@@ -62,20 +62,20 @@ def test_each_variant_changes_the_config_it_names_and_nothing_else(task):
 
 def test_tiny_screen_runs_skips_and_reports(tmp_path, capsys):
     runs, results = str(tmp_path / "runs"), str(tmp_path / "results")
-    argv = ["--tasks=pendulum", "--variants=paper-teacher,ddpg-paramnoise,ddpg-normal,normalised-reward",
+    argv = ["--tasks=pendulum", "--variants=paper-teacher,ddpg-paramnoise,ddpg-normal",
             "--steps=900", "--seeds=2", f"--runs-dir={runs}", f"--results-dir={results}", "--quiet"]
     argv += [f"--set={s}" for s in TINY]
     assert screen.main(argv) == 0
     with open(os.path.join(results, "screen.json")) as f:
         summary = json.load(f)["tasks"]["pendulum"]
-    assert set(summary["finished"]) == {"paper-teacher", "ddpg-paramnoise", "ddpg-normal", "normalised-reward"}
+    assert set(summary["finished"]) == {"paper-teacher", "ddpg-paramnoise", "ddpg-normal"}
     assert "fresh-baseline" in summary["not_finished"]
     # The archived cell carries the grid's provenance and the run's own numbers.
-    cell = os.path.join(results, "cells", "pendulum", "normalised-reward")
+    cell = os.path.join(results, "cells", "pendulum", "paper-teacher")
     with open(os.path.join(cell, "reproduce.json")) as f:
         assert len(json.load(f)["commit"]) == 40
     with open(os.path.join(cell, "summary.json")) as f:
-        assert summary["finished"]["normalised-reward"]["finals"] == pytest.approx(
+        assert summary["finished"]["paper-teacher"]["finals"] == pytest.approx(
             json.load(f)["final_return_per_seed"])
     with open(os.path.join(results, "README.md")) as f:
         text = f.read()
@@ -87,7 +87,7 @@ def test_tiny_screen_runs_skips_and_reports(tmp_path, capsys):
     # A second call trains nothing.
     assert screen.main(argv) == 0
     out = capsys.readouterr().out
-    assert out.count("done, skipped") == 4 and "running:" not in out
+    assert out.count("done, skipped") == 3 and "running:" not in out
 
 
 def test_bad_input_is_one_line_before_anything_trains(tmp_path, capsys):
