@@ -14,8 +14,9 @@ def test_a_row_per_test_with_its_compile(tmp_path):
         "import jax, jax.numpy as jnp\n"
         "def test_compiles():\n    assert float(jax.jit(lambda x: jnp.sin(x) * 2)(1.0)) != 0\n"
         "def test_nothing():\n    pass\n")
-    env = {**os.environ, "PYTHONPATH": ROOT, "METAPG_COMPILE_PROFILE": str(tmp_path / "profile"),
-           "JAX_ENABLE_COMPILATION_CACHE": "false"}
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTEST_")}  # not an xdist worker's
+    env.update({"PYTHONPATH": ROOT, "METAPG_COMPILE_PROFILE": str(tmp_path / "profile"),
+                "JAX_ENABLE_COMPILATION_CACHE": "false"})
     done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "tests.compile_profile", "-p", "no:cacheprovider",
                            str(tmp_path / "test_tiny.py")], cwd=str(tmp_path), env=env, capture_output=True,
                           text=True, timeout=300)

@@ -19,7 +19,6 @@ import sys
 import time
 
 import numpy as np
-import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TINY = ["--env=pendulum", "--method=ddpg", "--seeds=2", "--steps=1500", "--quiet", "--no-plot",
