@@ -469,7 +469,6 @@ class Signals:
         import jax
 
         pause = 1e-3
-        self.check()
         for leaf in jax.tree.leaves(tree):
             while hasattr(leaf, "is_ready") and not leaf.is_ready():
                 time.sleep(pause)

@@ -11,6 +11,7 @@ file only for a change that is meant to change the numbers, and say so in the co
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -63,32 +64,42 @@ KEYS = (7, 2)
 
 def compute(name: str) -> dict:
     """Evaluation returns per chunk (seeds x episodes) and a hash of the final student parameters."""
-    trainer = make_train(case_config(name))
-    state = jax.jit(vmap_seeds(trainer.init))(seed_keys(*KEYS))
-    chunk = jax.jit(vmap_seeds(trainer.train_chunk))
-    returns = []
+    return numbers(*run_chunks(make_train(case_config(name))))
+
+
+def run_chunks(trainer, init=None, chunk=None):
+    """A case's chunks from ``seed_keys(*KEYS)``: (final state, each chunk's metrics). ``init`` and ``chunk``:
+    the jitted, seed-vmapped ``trainer.init`` and ``trainer.train_chunk`` of a test that runs them again
+    (default: jitted here)."""
+    init = init or jax.jit(vmap_seeds(trainer.init))
+    chunk = chunk or jax.jit(vmap_seeds(trainer.train_chunk))
+    state, metrics = init(seed_keys(*KEYS)), []
     for _ in range(trainer.config.num_chunks):
-        state, metrics = chunk(state)
-        returns.append(np.asarray(metrics["eval_return"]))
-    return numbers(returns, state)
+        state, m = chunk(state)
+        metrics.append(m)
+    return state, metrics
 
 
-def numbers(returns, state) -> dict:
-    """A case's numbers from its chunks' evaluation returns and its final state (``compute``; the tests
-    that run a case's chunks for their own checks pass theirs)."""
+def numbers(state, metrics) -> dict:
+    """A case's numbers from ``run_chunks``'s final state and chunk metrics."""
     leaves = jax.tree.leaves(jax.device_get(state.student))
     digest = hashlib.sha256(b"".join(np.ascontiguousarray(x).tobytes() for x in leaves)).hexdigest()
-    return {"eval_return": [np.asarray(r).tolist() for r in returns], "student_sha256": digest}
+    return {"eval_return": [np.asarray(m["eval_return"]).tolist() for m in metrics], "student_sha256": digest}
+
+
+@functools.lru_cache(maxsize=None)
+def stored() -> dict:
+    """``golden_numbers.json`` as written."""
+    with open(PATH) as f:
+        return json.load(f)
 
 
 def assert_stored(name: str, got: dict) -> None:
     """``got`` (``numbers``) equals the stored numbers of case ``name``: bit for bit, parameters included,
     on a machine like the one that wrote the file (same CPU and JAX version), else the returns to a
     tolerance (XLA may round float32 differently elsewhere)."""
-    with open(PATH) as f:
-        stored = json.load(f)
-    want = stored["cases"][name]
-    if stored["machine"] == machine():
+    want = stored()["cases"][name]
+    if stored()["machine"] == machine():
         assert got["eval_return"] == want["eval_return"], name
         assert got["student_sha256"] == want["student_sha256"], name
     else:

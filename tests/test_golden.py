@@ -10,14 +10,10 @@ checks of their own (``golden.assert_stored``): each case's programs compile onc
 """
 
 import inspect
-import json
 
 import pytest
 
 from tests import golden
-
-with open(golden.PATH) as _f:
-    STORED = json.load(_f)
 
 CHECKED_ELSEWHERE = {
     "pendulum-ddpg-adaptive-param": "tests.test_train:test_chunked_and_single_scan_agree",
@@ -41,7 +37,7 @@ def test_every_method_has_a_case_and_every_case_is_checked():
         assert {(env, "ddpg", n) for n in NOISES} <= kinds
         assert {(env, "meta", t) for t in TEACHERS} <= kinds
     assert {case[6] for case in golden.CASES.values() if len(case) > 6} == {"td3"}
-    assert set(STORED["cases"]) == set(golden.CASES) >= set(CHECKED_ELSEWHERE)
+    assert set(golden.stored()["cases"]) == set(golden.CASES) >= set(CHECKED_ELSEWHERE)
     import importlib
 
     for name, where in CHECKED_ELSEWHERE.items():  # the test named runs the case and asserts its numbers

@@ -98,12 +98,9 @@ def test_td3_trains_as_the_student_of_the_noise_explorer_deterministically():
     init, chunk = jax.jit(vmap_seeds(trainer.init)), jax.jit(vmap_seeds(trainer.train_chunk))
     runs = []
     for _ in range(2):
-        state, returns = init(seed_keys(*golden.KEYS)), []
-        for _ in range(trainer.config.num_chunks):
-            state, metrics = chunk(state)
-            returns.append(np.asarray(metrics["eval_return"]))
-            assert np.all(np.asarray(metrics["cycle"]["finite"]))
-        runs.append(golden.numbers(returns, state))
+        state, metrics = golden.run_chunks(trainer, init, chunk)
+        assert all(np.all(np.asarray(m["cycle"]["finite"])) for m in metrics)
+        runs.append(golden.numbers(state, metrics))
     assert runs[0] == runs[1]
     golden.assert_stored(case, runs[0])
     assert np.all(np.asarray(state.student.step) > 0)
@@ -129,15 +126,13 @@ def test_meta_on_td3_compiles_once_stays_finite_and_chunked_equals_the_single_sc
     assert isinstance(trainer.student, TD3)
     keys = seed_keys(*golden.KEYS)
     full_state, full_metrics = jax.jit(vmap_seeds(trainer.train))(keys)
+    init = jax.jit(vmap_seeds(trainer.init))
     chunk = jax.jit(vmap_seeds(chex.assert_max_traces(n=1)(trainer.train_chunk)))
-    state = jax.jit(vmap_seeds(trainer.init))(keys)
-    returns = []
-    for _ in range(cfg.num_chunks):
-        state, metrics = chunk(state)
-        returns.append(np.asarray(metrics["eval_return"]))
-        assert np.all(np.asarray(metrics["cycle"]["finite"]))
-    golden.assert_stored(case, golden.numbers(returns, state))
-    again = chunk(jax.jit(vmap_seeds(trainer.init))(keys))[1]  # the same program again: no new trace
+    state, metrics = golden.run_chunks(trainer, init, chunk)
+    assert all(np.all(np.asarray(m["cycle"]["finite"])) for m in metrics)
+    golden.assert_stored(case, golden.numbers(state, metrics))
+    returns = [np.asarray(m["eval_return"]) for m in metrics]
+    again = chunk(init(keys))[1]  # the same program again: no new trace
     np.testing.assert_array_equal(np.asarray(again["eval_return"]), returns[0])
     chex.clear_trace_counter()
     np.testing.assert_allclose(np.stack(returns, 1), full_metrics["eval_return"], rtol=1e-5, atol=1e-4)

@@ -43,14 +43,11 @@ def test_chunked_and_single_scan_agree(case):
     full_state, full_metrics = train(keys)
     for a, b in zip(jax.tree.leaves((full_state, full_metrics)), jax.tree.leaves(train(keys))):
         np.testing.assert_array_equal(a, b)
-    state = jax.jit(vmap_seeds(trainer.init))(keys)
     chunk = jax.jit(vmap_seeds(chex.assert_max_traces(n=1)(trainer.train_chunk)))
-    returns = []
-    for _ in range(cfg.num_chunks):
-        state, m = chunk(state)
-        returns.append(np.asarray(m["eval_return"]))
+    state, metrics = golden.run_chunks(trainer, chunk=chunk)
     chex.clear_trace_counter()
-    golden.assert_stored(case, golden.numbers(returns, state))
+    golden.assert_stored(case, golden.numbers(state, metrics))
+    returns = [np.asarray(m["eval_return"]) for m in metrics]
     chex.assert_tree_all_finite(_strip_nan(state))
     assert int(state.env_steps[0]) == cfg.run.total_steps
     np.testing.assert_allclose(np.stack(returns, 1), full_metrics["eval_return"], rtol=1e-5, atol=1e-4)
