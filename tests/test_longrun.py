@@ -15,6 +15,7 @@ import pytest
 from experiments import run
 from metapg_jax import load_policy
 from metapg_jax.checkpoint import Checkpointer
+from tests import xla_flags
 from tests.helpers import TINY_BUFFER, TINY_RUN
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -272,7 +273,7 @@ def test_seed_results_do_not_depend_on_the_device_count(tmp_path, monkeypatch, c
     # total), which changes float32 round-off (~1e-7 relative), and RL training amplifies round-off over
     # many updates (measured 4e-4 after 3 cycles of 50 updates). So compare after one cycle.
     one, two = str(tmp_path / "one_device"), str(tmp_path / "two_devices")
-    p2 = _subprocess(TINY + ["--steps=300", "--out", two], env={"XLA_FLAGS": "--xla_force_host_platform_device_count=2"})
+    p2 = _subprocess(TINY + ["--steps=300", "--out", two], env={"XLA_FLAGS": xla_flags("--xla_force_host_platform_device_count=2")})
     assert run.main(TINY + ["--steps=300", "--out", one]) == 0
     out2, err2 = p2.communicate(timeout=600)
     assert p2.returncode == 0, err2[-3000:]

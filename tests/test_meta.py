@@ -25,6 +25,22 @@ def _tiny_meta():
     return trainer, jax.jit(trainer.cycle)
 
 
+# Two more tiny Meta configs, each shared by two tests (one compile each): a fresh-baseline run whose teacher
+# does not learn, and a two-env look-ahead run that updates the student only in the look-ahead.
+FRESH_FROZEN = (("meta.baseline", "fresh"), ("meta.eval_envs", 1), ("meta.lr", 0.0))
+LOOKAHEAD_ONLY = (("meta.baseline", "lookahead"), ("meta.eval_envs", 2), ("run.warmup_steps", 10_000),
+                  ("meta.student_from", "lookahead"))
+
+
+@functools.lru_cache(maxsize=None)
+def _tiny_cycle(overrides):
+    """The tiny Meta config with ``overrides`` (pairs), its steps sized for four cycles: trainer, jitted cycle."""
+    o = dict(overrides)
+    per_cycle = 50 + 100 * o.get("meta.eval_envs", 1) * (2 if o.get("meta.baseline") == "fresh" else 1)
+    trainer = make_train(tiny_config("meta", steps=4 * per_cycle, eval_every=2 * per_cycle, **o))
+    return trainer, jax.jit(trainer.cycle)
+
+
 def _teacher(design, state_dependent, **kw):
     ddpg = DDPG(DDPGConfig(hidden=(8, 8)), obs_size=3, action_size=2)
     cfg = MetaConfig(teacher=design, state_dependent_std=state_dependent, hidden=(8, 8), **kw)
@@ -112,24 +128,27 @@ def test_variance_teacher_never_changes_the_student():
 def test_lookahead_does_not_touch_the_student(student_from):
     # With the warm-up longer than the run, the student's own updates are skipped; so any change
     # of the student comes from the look-ahead, which must only happen with student_from=lookahead.
-    cfg = tiny_config("meta", steps=300, **{"run.warmup_steps": 10_000, "meta.student_from": student_from})
-    trainer = make_train(cfg)
+    if student_from == "lookahead":
+        trainer, cycle = _tiny_cycle(LOOKAHEAD_ONLY)
+    else:
+        trainer = make_train(tiny_config("meta", steps=300, **{"run.warmup_steps": 10_000, "meta.student_from": "pi"}))
+        cycle = jax.jit(trainer.cycle)
+    assert trainer.config.meta.student_from == student_from and trainer.config.run.warmup_steps == 10_000
     state = trainer.init(jax.random.PRNGKey(0))
-    new, metrics = jax.jit(trainer.cycle)(state)
+    new, metrics = cycle(state)
     same = jax.tree.leaves(jax.tree.map(lambda a, b: bool(np.array_equal(a, b)), state.student, new.student))
     assert all(same) == (student_from == "pi")
     assert np.isfinite(float(metrics["r_hat_lookahead"]))
 
 
 def test_a_zero_learning_rate_freezes_the_teacher_and_nothing_else():
-    cfg = tiny_config("meta", steps=600, **{"meta.lr": 0.0})
-    trainer = make_train(cfg)
+    trainer, cycle = _tiny_cycle(FRESH_FROZEN)
+    assert trainer.config.meta.lr == 0.0
     state = trainer.init(jax.random.PRNGKey(0))
-    cycle = jax.jit(trainer.cycle)
     new = cycle(cycle(state)[0])[0]
     assert all(jax.tree.leaves(jax.tree.map(np.array_equal, state.explorer.params, new.explorer.params)))
     assert not all(jax.tree.leaves(jax.tree.map(np.array_equal, state.student.actor, new.student.actor)))
-    learner, learn = _tiny_meta()  # the same run with the preset's lr: the teacher moves
+    learner, learn = _tiny_meta()  # a run with the preset's lr: the teacher moves
     learning = learn(learn(learner.init(jax.random.PRNGKey(0)))[0])[0]
     assert not all(jax.tree.leaves(jax.tree.map(np.array_equal, state.explorer.params, learning.explorer.params)))
     with pytest.raises(ValueError, match="meta.lr must be a finite number >= 0"):
@@ -138,14 +157,13 @@ def test_a_zero_learning_rate_freezes_the_teacher_and_nothing_else():
 
 @pytest.mark.parametrize("baseline,eval_envs", [("lookahead", 1), ("lookahead", 2), ("fresh", 1)])
 def test_sample_accounting(baseline, eval_envs):
+    """Samples per cycle: explore_steps, plus eval_steps per evaluation env for D1 (twice with a fresh baseline).
+    (The teacher's learning rate, the warm-up and where the student comes from do not change them.)"""
     per_cycle = 50 + 100 * eval_envs * (2 if baseline == "fresh" else 1)
-    if (baseline, eval_envs) == ("lookahead", 1):
-        trainer, cycle = _tiny_meta()
-    else:
-        trainer = make_train(tiny_config("meta", steps=4 * per_cycle, eval_every=2 * per_cycle,
-                                         **{"meta.baseline": baseline, "meta.eval_envs": eval_envs}))
-        cycle = jax.jit(trainer.cycle)
+    trainer, cycle = {("lookahead", 1): _tiny_meta, ("lookahead", 2): lambda: _tiny_cycle(LOOKAHEAD_ONLY),
+                      ("fresh", 1): lambda: _tiny_cycle(FRESH_FROZEN)}[baseline, eval_envs]()
     cfg = trainer.config
+    assert (cfg.meta.baseline, cfg.meta.eval_envs) == (baseline, eval_envs)
     state = trainer.init(jax.random.PRNGKey(0))
     n = 2
     for _ in range(n):

@@ -20,6 +20,8 @@ import time
 
 import numpy as np
 
+from tests import xla_flags
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TINY = ["--env=pendulum", "--method=ddpg", "--seeds=2", "--steps=1500", "--quiet", "--no-plot",
         "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "ddpg.batch_size=16",
@@ -38,7 +40,7 @@ def _env(**extra) -> dict:
     # the resumed job load the program the first job compiled.
     keep = ("JAX_COMPILATION_CACHE_DIR", "JAX_ENABLE_COMPILATION_CACHE", "JAX_COMPILATION_CACHE_MAX_SIZE")
     env = {k: v for k, v in os.environ.items() if k in keep or (not k.startswith("JAX_") and k != "XLA_FLAGS")}
-    env.update({"PYTHONPATH": ROOT, "JAX_PLATFORMS": "cpu", **extra})
+    env.update({"PYTHONPATH": ROOT, "JAX_PLATFORMS": "cpu", "XLA_FLAGS": xla_flags(), **extra})
     return env
 
 
@@ -85,7 +87,7 @@ def test_a_two_process_job_killed_mid_run_resumes_to_the_numbers_of_one_process_
     ``--resume``; its outputs, written by process 0 alone and covering every seed, equal bit for bit those
     of one uninterrupted process with two devices. (One process with two devices runs beside it.)"""
     reference = str(tmp_path / "two-devices")
-    env = _env(XLA_FLAGS="--xla_force_host_platform_device_count=2")
+    env = _env(XLA_FLAGS=xla_flags("--xla_force_host_platform_device_count=2"))
     single = subprocess.Popen([sys.executable, "-m", "experiments.run", *TINY, "--out", reference], cwd=ROOT,
                               env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
     out = str(tmp_path / "job")

@@ -91,7 +91,7 @@ def test_critic_loss_is_the_sum_of_both_critics_mse():
 
 def test_td3_trains_as_the_student_of_the_noise_explorer_deterministically():
     """The same key twice gives the same numbers, the case's stored ones (tests/golden.py). (Meta's
-    explorer: test_meta_on_td3_compiles_once_stays_finite_and_chunked_equals_the_single_scan.)"""
+    explorer: test_meta_on_td3_compiles_once_stays_finite_and_gives_its_stored_numbers.)"""
     case = "pendulum-ddpg-normal-td3"
     trainer = make_train(golden.case_config(case))
     assert isinstance(trainer.student, TD3)
@@ -117,28 +117,23 @@ def test_modern_td3_preset_has_the_authors_settings():
         make_config("hopper", "ddpg", "modern", student="sac")
 
 
-def test_meta_on_td3_compiles_once_stays_finite_and_chunked_equals_the_single_scan():
-    """Also: TD3 trains as the student of the Meta explorer, deterministically (the same key twice), to
-    the case's stored numbers (tests/golden.py)."""
+def test_meta_on_td3_compiles_once_stays_finite_and_gives_its_stored_numbers():
+    """TD3 trains as the student of the Meta explorer, deterministically (the same key twice), to the case's
+    stored numbers (tests/golden.py). (Chunked equals the single scan whatever the student and explorer:
+    ``Trainer.train`` is the scan of ``train_chunk``; tests/test_train.py checks it for DDPG and for Meta.)"""
     case = "pendulum-meta-independent-td3"
-    cfg = golden.case_config(case)
-    trainer = make_train(cfg)
+    trainer = make_train(golden.case_config(case))
     assert isinstance(trainer.student, TD3)
     keys = seed_keys(*golden.KEYS)
-    full_state, full_metrics = jax.jit(vmap_seeds(trainer.train))(keys)
     init = jax.jit(vmap_seeds(trainer.init))
     chunk = jax.jit(vmap_seeds(chex.assert_max_traces(n=1)(trainer.train_chunk)))
     state, metrics = golden.run_chunks(trainer, init, chunk)
     assert all(np.all(np.asarray(m["cycle"]["finite"])) for m in metrics)
     golden.assert_stored(case, golden.numbers(state, metrics))
-    returns = [np.asarray(m["eval_return"]) for m in metrics]
-    again = chunk(init(keys))[1]  # the same program again: no new trace
-    np.testing.assert_array_equal(np.asarray(again["eval_return"]), returns[0])
+    again = chunk(init(keys))[1]  # the same program again: no new trace, the same numbers
+    np.testing.assert_array_equal(np.asarray(again["eval_return"]), np.asarray(metrics[0]["eval_return"]))
     chex.clear_trace_counter()
-    np.testing.assert_allclose(np.stack(returns, 1), full_metrics["eval_return"], rtol=1e-5, atol=1e-4)
-    jax.tree.map(lambda a, b: np.testing.assert_allclose(a, b, rtol=1e-5, atol=1e-5),
-                 state.student.actor, full_state.student.actor)
-    np.testing.assert_array_equal(state.student.step, full_state.student.step)
+    assert np.all(np.asarray(state.student.step) > 0)
     assert np.all(np.isfinite(np.asarray(state.explorer.r_hat)))
 
 
