@@ -164,3 +164,155 @@ def fmt_p(p: float | None) -> str:
     if p is None or not math.isfinite(p):
         return "n/a"
     return f"{p:.2g}" if p >= 1e-4 else f"{p:.1e}"
+
+
+# -- aggregate scores over tasks (Agarwal et al., NeurIPS 2021, "Deep RL at the Edge of the Statistical
+# Precipice"; the estimators of their `rliable` package, written here on NumPy) ----------------------------
+#
+# Scores are normalised per task (``normalise``) and given as one array of per-seed scores per task (tasks may
+# have different seed counts). Point estimates pool the seeds of every task; intervals come from the
+# *stratified* bootstrap: each replicate resamples every task's seeds with replacement, independently per task
+# (and, for the probability of improvement, independently per method), and the 95% interval is the 2.5th and
+# 97.5th percentiles of the replicates. The generator is seeded: the same inputs give the same numbers.
+
+AGGREGATE_DEFINITION = (
+    "normalised score = (return − random policy's return) / (reference return − random policy's return), per "
+    "task; IQM: mean of the middle 50% of all seeds' normalised scores pooled over the tasks (scipy.stats."
+    "trim_mean, 25% cut each side); optimality gap: mean of max(0, 1 − score); P(X > Y): per task, the "
+    "probability that a seed of X scores above a seed of Y (ties count 1/2: Mann-Whitney U / (n·m)), averaged "
+    "over the tasks; [lo, hi]: 95% stratified percentile bootstrap ({reps:,} replicates, seeds resampled "
+    "within each task; generator seed {seed})")
+BOOTSTRAP_REPS = 20_000
+BOOTSTRAP_SEED = 0
+
+
+def normalise(returns: Sequence[float], low: float, high: float) -> np.ndarray:
+    """(returns − low) / (high − low): 0 at ``low`` (a random policy's return), 1 at ``high`` (the reference)."""
+    if not (math.isfinite(low) and math.isfinite(high)) or high == low:
+        raise ValueError(f"normalisation needs two different finite anchors, got low={low}, high={high}")
+    return (np.asarray(returns, np.float64) - low) / (high - low)
+
+
+def iqm(scores: np.ndarray, axis: int | None = None) -> np.ndarray:
+    """Interquartile mean: the mean of the middle 50% (``scipy.stats.trim_mean``, 25% cut from each end)."""
+    from scipy import stats
+
+    return stats.trim_mean(scores, 0.25, axis=axis)
+
+
+def optimality_gap(scores: np.ndarray, axis: int | None = None, gamma: float = 1.0) -> np.ndarray:
+    """The mean shortfall from ``gamma``: mean of max(0, gamma − score)."""
+    return np.mean(np.maximum(gamma - np.asarray(scores, np.float64), 0.0), axis=axis)
+
+
+AGGREGATES = {"IQM": iqm, "mean": lambda x, axis=None: np.mean(x, axis=axis), "optimality gap": optimality_gap}
+
+
+def _check_tasks(per_task: Sequence[Sequence[float]], what: str) -> list[np.ndarray]:
+    arrays = [np.asarray(x, np.float64).ravel() for x in per_task]
+    if not arrays or any(a.size == 0 for a in arrays):
+        raise ValueError(f"{what}: every task needs at least one seed")
+    if any(not np.all(np.isfinite(a)) for a in arrays):
+        raise ValueError(f"{what}: scores must be finite")
+    return arrays
+
+
+def _resample(rng: np.random.Generator, per_task: list[np.ndarray], reps: int) -> list[np.ndarray]:
+    """One (reps, n_task) array per task: each row a resample with replacement of that task's seeds."""
+    return [a[rng.integers(0, a.size, size=(reps, a.size))] for a in per_task]
+
+
+def _percentiles(replicates: np.ndarray, level: float) -> tuple[float, float]:
+    lo, hi = np.percentile(replicates, [50 * (1 - level), 50 * (1 + level)])
+    return float(lo), float(hi)
+
+
+def aggregate_interval(per_task: Sequence[Sequence[float]], statistic=iqm, reps: int = BOOTSTRAP_REPS,
+                       seed: int = BOOTSTRAP_SEED, level: float = 0.95) -> tuple[float, float, float]:
+    """(point, lo, hi): ``statistic`` (e.g. ``iqm``, ``optimality_gap``) of the seeds' scores pooled over the
+    tasks, and its stratified percentile-bootstrap interval."""
+    arrays = _check_tasks(per_task, "aggregate")
+    point = float(statistic(np.concatenate(arrays)))
+    replicates = statistic(np.concatenate(_resample(np.random.default_rng(seed), arrays, reps), axis=1), axis=1)
+    return (point, *_percentiles(replicates, level))
+
+
+def _p_improvement(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """P(X > Y) + P(X = Y) / 2 over the last two axes' pairs (x: (..., n), y: (..., m))."""
+    diff = x[..., :, None] - y[..., None, :]
+    return np.mean((diff > 0) + 0.5 * (diff == 0), axis=(-2, -1))
+
+
+def probability_of_improvement(x_per_task: Sequence[Sequence[float]], y_per_task: Sequence[Sequence[float]],
+                               reps: int = BOOTSTRAP_REPS, seed: int = BOOTSTRAP_SEED,
+                               level: float = 0.95) -> tuple[float, float, float]:
+    """(point, lo, hi): the average over tasks of P(a seed of X scores above a seed of Y), ties 1/2 (rliable's
+    ``probability_of_improvement``: Mann-Whitney U / (n·m) per task). Scores need not be normalised: the
+    statistic only compares X and Y within a task. X's and Y's seeds are resampled independently per task."""
+    xs, ys = _check_tasks(x_per_task, "probability of improvement"), _check_tasks(y_per_task, "probability of improvement")
+    if len(xs) != len(ys):
+        raise ValueError(f"probability of improvement: {len(xs)} tasks for X, {len(ys)} for Y")
+    point = float(np.mean([_p_improvement(x, y) for x, y in zip(xs, ys)]))
+    rng = np.random.default_rng(seed)
+    bx, by = _resample(rng, xs, reps), _resample(rng, ys, reps)
+    replicates = np.mean([_p_improvement(x, y) for x, y in zip(bx, by)], axis=0)
+    return (point, *_percentiles(replicates, level))
+
+
+def performance_profile(per_task: Sequence[Sequence[float]], taus: np.ndarray, reps: int = BOOTSTRAP_REPS,
+                        seed: int = BOOTSTRAP_SEED, level: float = 0.95) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(fraction, lo, hi) at each threshold in ``taus``: the fraction of seeds, pooled over the tasks, whose
+    normalised score exceeds tau, with its stratified bootstrap interval (Agarwal et al.'s run-score profile)."""
+    arrays = _check_tasks(per_task, "performance profile")
+    taus = np.asarray(taus, np.float64)
+    point = np.mean(np.concatenate(arrays)[None, :] > taus[:, None], axis=1)
+    pooled = np.concatenate(_resample(np.random.default_rng(seed), arrays, reps), axis=1)  # (reps, N)
+    fractions = np.stack([np.mean(pooled > t, axis=1) for t in taus], axis=1)  # (reps, taus)
+    lo, hi = np.percentile(fractions, [50 * (1 - level), 50 * (1 + level)], axis=0)
+    return point, lo, hi
+
+
+# -- per-task verdicts corrected for the number of comparisons ----------------------------------------------
+
+def holm(pvalues: Sequence[float]) -> np.ndarray:
+    """Holm-Bonferroni adjusted p-values of one family of tests (NaNs stay NaN and do not count toward m):
+    sorted ascending, p_(i) becomes max over j <= i of min(1, (m − j + 1) · p_(j))."""
+    p = np.asarray(pvalues, np.float64)
+    out = np.full(p.shape, np.nan)
+    ok = np.flatnonzero(np.isfinite(p))
+    m = ok.size
+    running = 0.0
+    for rank, i in enumerate(ok[np.argsort(p[ok], kind="stable")]):
+        running = max(running, min(1.0, (m - rank) * p[i]))
+        out[i] = running
+    return out
+
+
+def tost(a: Sequence[float], b: Sequence[float], margin: float) -> float:
+    """p of the two one-sided Welch t-tests for equivalence of the means within ±``margin``: the larger of the
+    p-values of H0: mean(a) − mean(b) <= −margin and H0: mean(a) − mean(b) >= +margin. A small p says the
+    difference lies inside the margin. NaN when either side has fewer than 2 values."""
+    from scipy import stats
+
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    if a.size < 2 or b.size < 2 or not margin > 0:
+        return math.nan
+    diff = float(a.mean() - b.mean())
+    va, vb = np.var(a, ddof=1) / a.size, np.var(b, ddof=1) / b.size
+    se = math.sqrt(va + vb)
+    if se == 0:
+        return 0.0 if abs(diff) < margin else 1.0
+    df = (va + vb) ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1))
+    p_low = stats.t.sf((diff + margin) / se, df)    # H0: diff <= -margin
+    p_high = stats.t.cdf((diff - margin) / se, df)  # H0: diff >= +margin
+    return float(max(p_low, p_high))
+
+
+def corrected_verdict(diff: float, p_holm: float, p_tost_holm: float, alpha: float = 0.05) -> str:
+    """'better' / 'worse' where the Holm-corrected difference test rejects (by the sign of ``diff``),
+    'equivalent' where the Holm-corrected equivalence test (``tost``) does, else 'inconclusive'."""
+    if math.isfinite(p_holm) and p_holm < alpha:
+        return "better" if diff > 0 else "worse"
+    if math.isfinite(p_tost_holm) and p_tost_holm < alpha:
+        return "equivalent"
+    return "inconclusive"

@@ -1,0 +1,120 @@
+"""experiments.stats: the aggregate scores over tasks (IQM, optimality gap, probability of improvement,
+performance profiles, stratified bootstrap intervals), Holm's correction and the equivalence test.
+
+The aggregate numbers are checked against `rliable` 1.2.0 (Agarwal et al.'s package; it needs pandas < 3, so it
+is not a dependency) on the fixed scores below, computed with rliable 1.2.0, arch 7.2.0, numpy 2.4.6:
+
+    from rliable import metrics, library
+    metrics.aggregate_iqm(X), metrics.aggregate_optimality_gap(X, 1.0), metrics.probability_of_improvement(X, Y)
+    library.get_interval_estimates({"X": X}, lambda s: np.array([metrics.aggregate_iqm(s),
+        metrics.aggregate_optimality_gap(s, 1.0)]), reps=50000)
+    library.get_interval_estimates({"X,Y": (X, Y)}, metrics.probability_of_improvement, reps=50000)
+    library.create_performance_profile({"X": X}, [0.25, 0.5, 1.0], reps=50000)
+
+(X, Y: 5 runs x 3 tasks.) The point estimates are equal; the intervals come from other random draws and agree
+to the bootstrap's Monte Carlo error.
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats as sps
+
+from experiments import stats
+
+X = np.array([[0.10, 0.55, 1.20], [0.35, 0.55, 0.90], [0.80, 0.20, 1.05], [0.05, 0.70, 0.40], [0.60, 0.95, 1.30]])
+Y = np.array([[0.20, 0.55, 0.80], [0.30, 0.10, 0.85], [0.15, 0.40, 1.10], [0.45, 0.25, 0.60], [0.05, 0.50, 0.95]])
+RLIABLE = {  # rliable 1.2.0's numbers for X and Y (the module's docstring)
+    "iqm": (0.6444444444444444, 0.44999999999999996, 0.8111111111111111),
+    "optimality gap": (0.39, 0.2633333333333334, 0.5233333333333332),
+    "P(X > Y)": (0.7000000000000001, 0.48666666666666664, 0.8933333333333332),
+    "profile": ([0.8, 0.6666666666666666, 0.2], [0.6, 0.4666666666666667, 0.06666666666666667],
+                [1.0, 0.8666666666666667, 0.3333333333333333]),
+}
+MC = 0.02  # the intervals' Monte Carlo tolerance (50,000 replicates there, 20,000 here)
+
+
+def test_aggregates_and_their_intervals_equal_rliables():
+    per_task = X.T  # one array of seeds per task
+    got = stats.aggregate_interval(per_task, stats.iqm)
+    assert got[0] == pytest.approx(RLIABLE["iqm"][0], abs=1e-12)
+    assert got[1:] == pytest.approx(RLIABLE["iqm"][1:], abs=MC)
+    got = stats.aggregate_interval(per_task, stats.optimality_gap)
+    assert got[0] == pytest.approx(RLIABLE["optimality gap"][0], abs=1e-12)
+    assert got[1:] == pytest.approx(RLIABLE["optimality gap"][1:], abs=MC)
+    got = stats.probability_of_improvement(X.T, Y.T)
+    assert got[0] == pytest.approx(RLIABLE["P(X > Y)"][0], abs=1e-12)
+    assert got[1:] == pytest.approx(RLIABLE["P(X > Y)"][1:], abs=MC)
+    point, lo, hi = stats.performance_profile(per_task, np.array([0.25, 0.5, 1.0]))
+    np.testing.assert_allclose(point, RLIABLE["profile"][0], atol=1e-12)
+    np.testing.assert_allclose(lo, RLIABLE["profile"][1], atol=1 / 15 + 1e-9)  # fractions of 15 seeds
+    np.testing.assert_allclose(hi, RLIABLE["profile"][2], atol=1 / 15 + 1e-9)
+
+
+def test_the_estimators_follow_their_definitions():
+    pooled = np.sort(X.ravel())
+    assert stats.iqm(X.ravel()) == pytest.approx(pooled[3:12].mean())  # 15 scores: 3 cut from each end
+    assert stats.optimality_gap(np.array([0.5, 1.5, 1.0, -0.5])) == pytest.approx((0.5 + 0 + 0 + 1.5) / 4)
+    # P(X > Y) on one task is Mann-Whitney's U / (n m), ties counted 1/2: 4 of the 6 pairs above, 1 tie
+    x, y = np.array([1.0, 2.0, 3.0]), np.array([2.0, 0.0])
+    u = sps.mannwhitneyu(x, y, alternative="greater").statistic
+    assert stats.probability_of_improvement([x], [y])[0] == pytest.approx(u / 6) == pytest.approx(4.5 / 6)
+    np.testing.assert_allclose(stats.normalise([-10.0, 0.0, 30.0], -10.0, 30.0), [0.0, 0.25, 1.0])
+    with pytest.raises(ValueError, match="two different finite anchors"):
+        stats.normalise([1.0], 2.0, 2.0)
+
+
+def test_the_bootstrap_is_seeded_stratified_and_takes_tasks_of_any_seed_count():
+    ragged = [np.array([0.1, 0.4, 0.3]), np.array([0.9, 1.1, 0.8, 1.0, 0.7]), np.array([0.5, 0.6])]
+    a = stats.aggregate_interval(ragged, stats.iqm)
+    assert a == stats.aggregate_interval(ragged, stats.iqm)  # same inputs, same numbers
+    assert a[1] <= a[0] <= a[2]
+    few = [stats.aggregate_interval(ragged, stats.AGGREGATES["mean"], reps=20, seed=seed) for seed in (0, 1)]
+    assert few[0] != few[1]  # the draws come from the seeded generator
+    # stratified: a task whose seeds all score the same contributes that score to every replicate, so with
+    # every task constant the interval has no width
+    constant = [np.full(4, 0.2), np.full(6, 0.7)]
+    assert stats.aggregate_interval(constant, stats.AGGREGATES["mean"]) == pytest.approx((0.5, 0.5, 0.5))
+    assert stats.probability_of_improvement(constant, constant) == pytest.approx((0.5, 0.5, 0.5))
+    for bad, message in (([], "at least one seed"), ([np.array([])], "at least one seed"),
+                         ([np.array([0.1, np.nan])], "finite")):
+        with pytest.raises(ValueError, match=message):
+            stats.aggregate_interval(bad, stats.iqm)
+    with pytest.raises(ValueError, match="2 tasks for X, 1 for Y"):
+        stats.probability_of_improvement(constant, constant[:1])
+
+
+def test_holm_on_a_textbook_example():
+    # m = 4: sorted 0.005, 0.01, 0.03, 0.04 -> 4 x 0.005, 3 x 0.01, 2 x 0.03, max(2 x 0.03, 1 x 0.04)
+    np.testing.assert_allclose(stats.holm([0.01, 0.04, 0.03, 0.005]), [0.03, 0.06, 0.06, 0.02])
+    got = stats.holm([0.02, math.nan, 0.5])  # a missing test neither counts nor gets a p
+    assert got[0] == pytest.approx(0.04) and math.isnan(got[1]) and got[2] == pytest.approx(0.5)
+    assert stats.holm([0.6, 0.7])[1] == 1.0  # capped at 1
+
+
+def test_the_equivalence_test_is_two_one_sided_welch_tests():
+    rng = np.random.default_rng(0)
+    a, b = 10 + rng.normal(0, 0.1, 8), 10.05 + rng.normal(0, 0.1, 8)
+    margin = 0.5
+    # each side is scipy's one-sided Welch test of the data shifted by the margin
+    p_low = sps.ttest_ind(a + margin, b, equal_var=False, alternative="greater").pvalue
+    p_high = sps.ttest_ind(a - margin, b, equal_var=False, alternative="less").pvalue
+    assert stats.tost(a, b, margin) == pytest.approx(max(p_low, p_high))
+    # equivalent: tight samples, close means, a wide margin
+    assert stats.tost(a, b, margin) < 1e-6
+    # not equivalent: the means differ by more than the margin
+    far = b + 2.0
+    assert stats.tost(a, far, margin) > 0.5 and stats.welch_test(a, far)[1] < 1e-6
+    # inconclusive: the same means but so much spread that neither test can decide
+    wide_a, wide_b = 10 + rng.normal(0, 5, 8), 10 + rng.normal(0, 5, 8)
+    assert stats.tost(wide_a, wide_b, margin) > 0.05 and stats.welch_test(wide_a, wide_b)[1] > 0.05
+    assert math.isnan(stats.tost(a, b[:1], margin)) and math.isnan(stats.tost(a, b, 0.0))
+
+
+def test_corrected_verdicts():
+    assert stats.corrected_verdict(+3.0, 0.01, 0.9) == "better"
+    assert stats.corrected_verdict(-3.0, 0.01, 0.9) == "worse"
+    assert stats.corrected_verdict(0.1, 0.6, 0.01) == "equivalent"
+    assert stats.corrected_verdict(0.1, 0.06, 0.2) == "inconclusive"
+    assert stats.corrected_verdict(0.1, math.nan, math.nan) == "inconclusive"
