@@ -19,20 +19,26 @@ from brax.envs.base import Env
 from envs.wrappers import AutoResetWrapper
 
 
-def evaluate(env: Env, act: Callable[[jax.Array], jax.Array], key: jax.Array,
-             num_episodes: int, max_steps: int) -> tuple[jax.Array, jax.Array]:
+def evaluate(env: Env, act: Callable[..., jax.Array], key: jax.Array,
+             num_episodes: int, max_steps: int, stochastic: bool = False) -> tuple[jax.Array, jax.Array]:
     """Returns (episode returns, episode lengths), each of shape (num_episodes,).
 
     Args:
       env: a task from ``envs.make`` (auto-reset is bypassed: each episode runs once).
-      act: deterministic policy for one raw observation -> action in [-1, 1].
+      act: deterministic policy for one raw observation -> action in [-1, 1]; with ``stochastic``,
+        ``act(obs, key)`` with a fresh key per episode and step (e.g. the uniformly random policy whose
+        returns anchor the normalised scores: ``experiments.normalisation``).
       max_steps: the time limit (episodes end by then through the wrapper anyway).
     """
     if isinstance(env, AutoResetWrapper):
         env = env.env
-    state = jax.vmap(env.reset)(jax.random.split(key, num_episodes))
+    k_reset, k_act = jax.random.split(key)
+    state = jax.vmap(env.reset)(jax.random.split(k_reset if stochastic else key, num_episodes))
     step = jax.vmap(env.step)
-    batch_act = jax.vmap(act)
+    if stochastic:
+        batch_act = lambda obs, t: jax.vmap(act)(obs, jax.random.split(jax.random.fold_in(k_act, t), num_episodes))
+    else:
+        batch_act = lambda obs, t: jax.vmap(act)(obs)
 
     def cond(c):
         t, _, _, _, done = c
@@ -40,7 +46,7 @@ def evaluate(env: Env, act: Callable[[jax.Array], jax.Array], key: jax.Array,
 
     def body(c):
         t, s, ret, length, done = c
-        s = step(s, batch_act(s.obs))
+        s = step(s, batch_act(s.obs, t))
         alive = jnp.logical_not(done)
         ret = ret + jnp.where(alive, s.reward, 0.0)
         length = length + alive.astype(jnp.int32)

@@ -1,0 +1,159 @@
+"""A grid's aggregate view over its tasks, as Agarwal et al. (NeurIPS 2021) recommend: per method the IQM, the
+mean and the optimality gap of the seeds' normalised final returns with 95% stratified bootstrap intervals,
+the probability that each teacher improves on each noise baseline, and performance profiles (a figure).
+
+    python -m experiments.aggregate results/table2.json           # writes results/aggregate.{md,json} and
+                                                                  # results/performance_profiles.png
+    python -m experiments.aggregate results/td3/table2.json --anchors results/normalisation.json
+
+The input is a grid's JSON twin (``experiments.tables``: per task and method the seeds' final returns); the
+scores are normalised with the anchors of ``experiments.normalisation`` (0 = a uniformly random policy, 1 =
+the reference). Only the tasks on which every method of the grid has a finished cell enter: aggregates over
+different task sets would not be comparable (the tasks left out are listed). The estimators, their intervals
+and the bootstrap's seed: ``experiments.stats`` (``AGGREGATE_DEFINITION``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+import numpy as np
+
+from experiments import stats
+from experiments.grid import METHOD_NAMES, TASK_NAMES, noise_methods
+
+PROFILE_TAUS = np.linspace(0.0, 2.0, 81)
+
+
+def grid_scores(grid: dict, anchors: dict[str, tuple[float, float]]) -> tuple[list[str], list[str], dict, list[str]]:
+    """(tasks, methods, scores, left_out): the tasks where every method has a finished cell and an anchor,
+    the methods with a finished cell somewhere, {method: [normalised per-seed scores of each task]}, and the
+    tasks left out with why."""
+    methods = [m for m in {m: 0 for row in grid["rows"] for m in row["methods"]}
+               if any(row["methods"].get(m, {}).get("status") == "done" for row in grid["rows"])]
+    tasks, left_out = [], []
+    for row in grid["rows"]:
+        absent = [m for m in methods if row["methods"].get(m, {}).get("status") != "done"]
+        if row["task"] not in anchors:
+            left_out.append(f"{row['task']} (no normalisation anchors)")
+        elif absent:
+            left_out.append(f"{row['task']} (no finished cell for {', '.join(absent)})")
+        else:
+            tasks.append(row["task"])
+    rows = {row["task"]: row for row in grid["rows"]}
+    scores = {m: [stats.normalise(rows[t]["methods"][m]["per_seed"], *anchors[t]) for t in tasks] for m in methods}
+    return tasks, methods, scores, left_out
+
+
+def report(grid: dict, anchors: dict[str, tuple[float, float]]) -> dict:
+    """The aggregate numbers of a grid (``grid_scores``'s tasks), JSON-ready."""
+    tasks, methods, scores, left_out = grid_scores(grid, anchors)
+    if not tasks:
+        raise ValueError("no task has a finished cell for every method and normalisation anchors: "
+                         + "; ".join(left_out))
+    out = {"tasks": tasks, "left_out": left_out, "methods": {}, "improvement": [],
+           "definition": stats.AGGREGATE_DEFINITION.format(reps=stats.BOOTSTRAP_REPS, seed=stats.BOOTSTRAP_SEED),
+           "anchors": {t: {"random_return": anchors[t][0], "reference_return": anchors[t][1]} for t in tasks}}
+    for m in methods:
+        entry = {"seeds_per_task": [int(len(s)) for s in scores[m]]}
+        for name, statistic in stats.AGGREGATES.items():
+            entry[name] = dict(zip(("point", "lo", "hi"), stats.aggregate_interval(scores[m], statistic)))
+        out["methods"][m] = entry
+    noise = noise_methods(methods)
+    teachers = [m for m in methods if m not in noise]
+    pairs = [(x, y) for x in teachers for y in noise] or [(x, y) for x in methods for y in methods if x != y]
+    for x, y in pairs:
+        point, lo, hi = stats.probability_of_improvement(scores[x], scores[y])
+        out["improvement"].append({"x": x, "y": y, "point": point, "lo": lo, "hi": hi})
+    return out
+
+
+def _interval(e: dict) -> str:
+    return f"{stats.fmt(e['point'], 2)} [{stats.fmt(e['lo'], 2)}, {stats.fmt(e['hi'], 2)}]"
+
+
+def markdown(rep: dict, title: str) -> str:
+    names = lambda ms: [METHOD_NAMES.get(m, m) for m in ms]
+    lines = [f"# {title}: aggregate scores over tasks", "",
+             f"Tasks: {', '.join(TASK_NAMES.get(t, t) for t in rep['tasks'])}"
+             + (f". Left out: {'; '.join(rep['left_out'])}." if rep["left_out"] else "."), "",
+             f"- {rep['definition']}.",
+             "- anchors per task (random policy → 0, reference → 1): " + "; ".join(
+                 f"{TASK_NAMES.get(t, t)} {stats.fmt(a['random_return'])} → {stats.fmt(a['reference_return'])}"
+                 for t, a in rep["anchors"].items()) + " (results/normalisation.json).", "",
+             "| method | IQM | mean | optimality gap | seeds per task |", "|---|---|---|---|---|"]
+    for m, name in zip(rep["methods"], names(rep["methods"])):
+        e = rep["methods"][m]
+        lines.append(f"| {name} | {_interval(e['IQM'])} | {_interval(e['mean'])} | {_interval(e['optimality gap'])} "
+                     f"| {', '.join(map(str, e['seeds_per_task']))} |")
+    lines += ["", "## Probability of improvement", "",
+              "P(X > Y): the chance that a seed of X ends above a seed of Y on a task drawn from the grid's tasks; "
+              "0.5 = neither tends to end higher. 95% stratified bootstrap interval in brackets.", "",
+              "| X | Y | P(X > Y) |", "|---|---|---|"]
+    for p in rep["improvement"]:
+        lines.append(f"| {METHOD_NAMES.get(p['x'], p['x'])} | {METHOD_NAMES.get(p['y'], p['y'])} | {_interval(p)} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot_profiles(grid: dict, anchors: dict, path: str, title: str) -> None:
+    """Performance profiles: the fraction of seeds (pooled over the tasks) above each normalised score."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    _, methods, scores, _ = grid_scores(grid, anchors)
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    for m in methods:
+        point, lo, hi = stats.performance_profile(scores[m], PROFILE_TAUS)
+        line, = ax.plot(PROFILE_TAUS, point, label=METHOD_NAMES.get(m, m))
+        ax.fill_between(PROFILE_TAUS, lo, hi, alpha=0.15, color=line.get_color())
+    ax.set_xlabel("normalised final return τ (0 = random policy, 1 = reference)")
+    ax.set_ylabel("fraction of seeds with score > τ")
+    ax.set_title(f"{title}: performance profiles (95% stratified bootstrap bands)", fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120, metadata={"Software": None})
+    plt.close(fig)
+
+
+def main(argv: list[str] | None = None) -> int:
+    from experiments.normalisation import DEFAULT_OUT, load
+    from metapg_jax.reporting import write_json_atomic
+
+    p = argparse.ArgumentParser(prog="python -m experiments.aggregate", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("grid", help="a grid's JSON twin, e.g. results/table2.json")
+    p.add_argument("--anchors", default=DEFAULT_OUT, help="normalisation anchors (default results/normalisation.json)")
+    p.add_argument("--out", default=None, help="output folder (default: the grid file's folder)")
+    args = p.parse_args(argv)
+    for path, what in ((args.grid, "grid"), (args.anchors, "anchors")):
+        if not os.path.isfile(path):
+            print(f"error: {what} file {path} not found" + (" (python -m experiments.normalisation writes it)"
+                                                          if what == "anchors" else ""), file=sys.stderr)
+            return 2
+    try:
+        with open(args.grid) as f:
+            grid = json.load(f)
+        anchors = load(args.anchors)
+        rep = report(grid, anchors)
+    except (ValueError, KeyError) as err:
+        print(f"error: {args.grid}: {err}", file=sys.stderr)
+        return 2
+    out = args.out or os.path.dirname(os.path.abspath(args.grid))
+    os.makedirs(out, exist_ok=True)
+    title = f"{grid.get('preset', '?')} preset" + (f" ({os.path.basename(out)})" if os.path.basename(out) != "results" else "")
+    write_json_atomic(os.path.join(out, "aggregate.json"), rep)
+    with open(os.path.join(out, "aggregate.md"), "w") as f:
+        f.write(markdown(rep, title))
+    plot_profiles(grid, anchors, os.path.join(out, "performance_profiles.png"), title)
+    print(f"wrote aggregate.md, aggregate.json and performance_profiles.png to {out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,119 @@
+"""The anchors of the normalised scores (``experiments.stats.normalise``), per task: 0 = a uniformly random
+policy's return, 1 = the reference return. Measured and written once; every aggregate reads them from the file.
+
+    python -m experiments.normalisation                  # measures, writes results/normalisation.json
+    python -m experiments.normalisation --episodes 20 --tasks pendulum,hopper --out /tmp/anchors.json
+
+* **0, the random policy**: actions uniform in [-1, 1]^d (the tasks' scaled action space) through the project's
+  evaluation (``metapg_jax.evaluate`` with a stochastic policy: episodes from seeded resets, each up to the
+  task's time limit), ``--episodes`` episodes per task, on the engine ``--physics=auto`` picks on this machine
+  (MuJoCo's C engine for the MuJoCo tasks on a CPU; Pendulum is a JAX task). Mean and sample std over episodes.
+* **1, the reference**: the mean final return of the paper's baseline, DDPG with adaptive parameter noise, at the
+  paper's budget in the Table 2 grid (``results/table2.json``: 8 seeds, paper preset), with that cell's run
+  commit. A fixed choice made before any aggregate was computed: no grid built later moves it, and the
+  baseline of every comparison scores 1 on Table 2's tasks by construction (as human-normalised Atari scores
+  put the human at 1).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DEFAULT_OUT = os.path.join(ROOT, "results", "normalisation.json")
+REFERENCE_GRID = os.path.join(ROOT, "results", "table2.json")
+REFERENCE_METHOD = "ddpg-paramnoise"
+
+
+def random_policy_returns(task: str, episodes: int, seed: int = 0):
+    """(returns, lengths, engine) of ``episodes`` episodes of the uniformly random policy on ``task``."""
+    import jax
+    import numpy as np
+
+    import envs
+    from metapg_jax.config import make_config
+    from metapg_jax.evaluate import evaluate
+
+    cfg = make_config(task, "ddpg", physics="auto")
+    env = envs.make(task, source=cfg.env.source, episode_length=cfg.episode_length, physics=cfg.env.physics)
+    act = lambda obs, key: jax.random.uniform(key, (env.action_size,), minval=-1.0, maxval=1.0)
+    ret, length = jax.jit(lambda k: evaluate(env, act, k, episodes, cfg.episode_length, stochastic=True))(
+        jax.random.PRNGKey(seed))
+    return np.asarray(ret, np.float64), np.asarray(length), cfg.env.physics
+
+
+def reference_returns(path: str = REFERENCE_GRID, method: str = REFERENCE_METHOD) -> dict:
+    """Per task, the reference method's mean final return in the grid's JSON twin, with its provenance."""
+    with open(path) as f:
+        grid = json.load(f)
+    out = {}
+    for row in grid["rows"]:
+        cell = row["methods"].get(method, {})
+        if cell.get("status") == "done":
+            out[row["task"]] = {"reference_return": cell["mean"], "reference_n": cell["n"],
+                                "reference_budget": cell["budget"], "reference_run_commit": cell["run_commit"],
+                                "reference_run_dir": cell["run_dir"]}
+    return out
+
+
+def load(path: str = DEFAULT_OUT) -> dict[str, tuple[float, float]]:
+    """task -> (low, high): the random policy's and the reference's returns from the anchors file."""
+    with open(path) as f:
+        tasks = json.load(f)["tasks"]
+    return {t: (a["random_return"], a["reference_return"]) for t, a in tasks.items()}
+
+
+def main(argv: list[str] | None = None) -> int:
+    from envs import TASKS
+
+    p = argparse.ArgumentParser(prog="python -m experiments.normalisation", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--tasks", default=",".join(TASKS), help="comma-separated tasks (default: all)")
+    p.add_argument("--episodes", type=int, default=100, help="random-policy episodes per task (default 100)")
+    p.add_argument("--seed", type=int, default=0, help="PRNG seed of the resets and actions (default 0)")
+    p.add_argument("--out", default=DEFAULT_OUT, help="the anchors file (default results/normalisation.json)")
+    args = p.parse_args(argv)
+    tasks = [t for t in args.tasks.split(",") if t]
+    unknown = [t for t in tasks if t not in TASKS]
+    if unknown or not tasks:
+        print(f"error: unknown task(s) {', '.join(unknown) or '(none given)'}; tasks: {', '.join(TASKS)}",
+              file=sys.stderr)
+        return 2
+    if args.episodes < 2:
+        print(f"error: --episodes must be at least 2 (a mean and a std), got {args.episodes}", file=sys.stderr)
+        return 2
+    references = reference_returns()
+    missing = [t for t in tasks if t not in references]
+    if missing:
+        print(f"error: {REFERENCE_GRID} has no finished {REFERENCE_METHOD} cell for {', '.join(missing)}",
+              file=sys.stderr)
+        return 2
+
+    from metapg_jax.reporting import provenance, write_json_atomic
+
+    anchors = {}
+    for task in tasks:
+        ret, length, engine = random_policy_returns(task, args.episodes, args.seed)
+        anchors[task] = {"random_return": float(ret.mean()), "random_return_std": float(ret.std(ddof=1)),
+                         "random_episode_length_mean": float(length.mean()), "engine": engine, **references[task]}
+        print(f"{task}: random policy {ret.mean():.2f} ± {ret.std(ddof=1):.2f} over {args.episodes} episodes "
+              f"({engine}); reference {references[task]['reference_return']:.2f}")
+    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
+    write_json_atomic(args.out, {
+        "definition": "normalised score = (return - random_return) / (reference_return - random_return)",
+        "random_policy": {"actions": "uniform in [-1, 1]^d, a fresh draw per step", "episodes": args.episodes,
+                          "seed": args.seed, "statistics": "mean and sample std (ddof=1) over episodes"},
+        "reference": {"grid": os.path.relpath(REFERENCE_GRID, ROOT), "method": REFERENCE_METHOD,
+                      "statistic": "mean final return over the cell's seeds (experiments.stats.FINAL_DEFINITION)"},
+        "measured": {"date": datetime.date.today().isoformat(), **provenance()},
+        "tasks": anchors})
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,80 @@
+"""experiments.normalisation (the anchors of the normalised scores) and experiments.aggregate (a grid's
+aggregate scores over tasks), on a fabricated grid and on Pendulum's random policy."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from experiments import aggregate, normalisation, stats
+
+
+def _grid():
+    """A grid's JSON twin as experiments.tables writes it: three tasks, a teacher and two noise baselines; the
+    teacher has no finished cell on the third task."""
+    rng = np.random.default_rng(3)
+    cell = lambda mean: {"status": "done", "per_seed": (mean + rng.normal(0, 0.2, 6)).tolist(), "mean": mean}
+    rows = [{"task": "pendulum", "methods": {"meta-independent": cell(-150.0), "ddpg-paramnoise": cell(-200.0),
+                                             "ddpg-normal": cell(-180.0)}},
+            {"task": "reacher", "methods": {"meta-independent": cell(-5.0), "ddpg-paramnoise": cell(-7.0),
+                                            "ddpg-normal": cell(-6.0)}},
+            {"task": "hopper", "methods": {"meta-independent": {"status": "not run"}, "ddpg-paramnoise": cell(900.0),
+                                           "ddpg-normal": cell(1000.0)}}]
+    return {"preset": "paper", "baseline": "ddpg-paramnoise", "rows": rows}
+
+
+ANCHORS = {"pendulum": (-1200.0, -200.0), "reacher": (-43.0, -7.0), "hopper": (18.0, 1264.0)}
+
+
+def test_the_report_normalises_pools_the_common_tasks_and_compares_teachers_with_noise():
+    grid = _grid()
+    rep = aggregate.report(grid, ANCHORS)
+    assert rep["tasks"] == ["pendulum", "reacher"]
+    assert rep["left_out"] == ["hopper (no finished cell for meta-independent)"]
+    pooled = np.concatenate([stats.normalise(row["methods"]["ddpg-normal"]["per_seed"], *ANCHORS[row["task"]])
+                             for row in grid["rows"][:2]])
+    assert rep["methods"]["ddpg-normal"]["IQM"]["point"] == pytest.approx(stats.iqm(pooled))
+    assert rep["methods"]["ddpg-normal"]["optimality gap"]["point"] == pytest.approx(stats.optimality_gap(pooled))
+    assert rep["methods"]["ddpg-normal"]["seeds_per_task"] == [6, 6]
+    assert [(p["x"], p["y"]) for p in rep["improvement"]] == [("meta-independent", "ddpg-paramnoise"),
+                                                              ("meta-independent", "ddpg-normal")]
+    better = rep["improvement"][0]  # the means are ten stds and more apart on both tasks
+    assert better["point"] == 1.0 and better["lo"] <= better["point"] <= better["hi"]
+    md = aggregate.markdown(rep, "paper preset")
+    assert "| Meta (independent) | DDPG (param noise) | 1.00 [1.00, 1.00] |" in md
+    assert "Left out: hopper (no finished cell for meta-independent)." in md
+    with pytest.raises(ValueError, match="no task has a finished cell for every method"):
+        aggregate.report(grid, {"hopper": ANCHORS["hopper"]})
+
+
+def test_the_command_writes_the_report_and_refuses_missing_files(tmp_path, capsys):
+    grid_path, anchors_path = tmp_path / "table2.json", tmp_path / "anchors.json"
+    grid_path.write_text(json.dumps(_grid()))
+    anchors_path.write_text(json.dumps({"tasks": {t: {"random_return": lo, "reference_return": hi}
+                                                  for t, (lo, hi) in ANCHORS.items()}}))
+    assert aggregate.main([str(grid_path), "--anchors", str(anchors_path)]) == 0
+    assert sorted(os.listdir(tmp_path)) == ["aggregate.json", "aggregate.md", "anchors.json",
+                                            "performance_profiles.png", "table2.json"]
+    assert json.loads((tmp_path / "aggregate.json").read_text())["tasks"] == ["pendulum", "reacher"]
+    assert aggregate.main([str(grid_path), "--anchors", str(tmp_path / "none.json")]) == 2
+    assert "anchors file" in capsys.readouterr().err
+
+
+def test_the_random_policys_returns_anchor_zero(tmp_path, capsys):
+    ret, length, engine = normalisation.random_policy_returns("pendulum", episodes=4)
+    assert engine == "mjx" and ret.shape == (4,) and np.all(length == 200)
+    assert len(set(ret.tolist())) == 4 and np.all(ret < -500)  # random swinging: far below a balancing policy
+    again, _, _ = normalisation.random_policy_returns("pendulum", episodes=4)
+    np.testing.assert_array_equal(ret, again)  # seeded
+    out = tmp_path / "anchors.json"
+    assert normalisation.main(["--tasks", "pendulum", "--episodes", "4", "--out", str(out)]) == 0
+    stored = json.loads(out.read_text())
+    assert stored["tasks"]["pendulum"]["random_return"] == pytest.approx(float(ret.mean()))
+    assert stored["tasks"]["pendulum"]["reference_run_commit"] and stored["measured"]["commit"]
+    low, high = normalisation.load(str(out))["pendulum"]
+    assert low == pytest.approx(float(ret.mean())) and high > low
+    for argv, message in ((["--tasks", "walker"], "unknown task(s) walker"), (["--episodes", "1"], "at least 2")):
+        assert normalisation.main([*argv, "--out", str(tmp_path / "x.json")]) == 2
+        assert message in capsys.readouterr().err
+    assert not (tmp_path / "x.json").exists()
