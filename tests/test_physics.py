@@ -209,7 +209,7 @@ TINY_IP = ["--env=inverted_pendulum", "--physics=mujoco", "--method=ddpg", "--se
 def test_c_engine_run_resumes_bit_for_bit_after_sigkill(tmp_path):
     from tests.test_longrun import sigkill_resume_and_compare
 
-    full = sigkill_resume_and_compare(tmp_path, TINY_IP + ["--steps=6000"], chunks=20,
+    full = sigkill_resume_and_compare(tmp_path, TINY_IP + ["--steps=3000"], chunks=10,
                                       resume_args=["--compile-cache=off"])
     summary = json.load(open(os.path.join(full, "summary.json")))
     assert summary["physics"] == "mujoco"
