@@ -8,14 +8,18 @@ the probability that each teacher improves on each noise baseline, and performan
 
 The input is a grid's JSON twin (``experiments.tables``: per task and method the seeds' final returns); the
 scores are normalised with the anchors of ``experiments.normalisation`` (0 = a uniformly random policy, 1 =
-the reference). Only the tasks on which every method of the grid has a finished cell enter: aggregates over
-different task sets would not be comparable (the tasks left out are listed). The estimators, their intervals
-and the bootstrap's seed: ``experiments.stats`` (``AGGREGATE_DEFINITION``).
+the reference). The methods are those with a finished cell on some task (the others are listed as absent);
+only the tasks on which every one of them has a finished cell enter: aggregates over different task sets
+would not be comparable (the tasks left out are listed). Each teacher (a method that does not explore with
+noise) is compared with each noise baseline; a grid without both kinds compares every ordered pair of its
+methods. The estimators, their intervals and the bootstrap's seed: ``experiments.stats``
+(``AGGREGATE_DEFINITION``).
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime
 import json
 import os
 import sys
@@ -31,16 +35,17 @@ PROFILE_TAUS = np.linspace(0.0, 2.0, 81)
 def grid_scores(grid: dict, anchors: dict[str, tuple[float, float]]) -> tuple[list[str], list[str], dict, list[str]]:
     """(tasks, methods, scores, left_out): the tasks where every method has a finished cell and an anchor,
     the methods with a finished cell somewhere, {method: [normalised per-seed scores of each task]}, and the
-    tasks left out with why."""
+    tasks left out with why (as the tables name tasks and methods)."""
     methods = [m for m in {m: 0 for row in grid["rows"] for m in row["methods"]}
                if any(row["methods"].get(m, {}).get("status") == "done" for row in grid["rows"])]
     tasks, left_out = [], []
     for row in grid["rows"]:
         absent = [m for m in methods if row["methods"].get(m, {}).get("status") != "done"]
         if row["task"] not in anchors:
-            left_out.append(f"{row['task']} (no normalisation anchors)")
+            left_out.append(f"{TASK_NAMES.get(row['task'], row['task'])} (no normalisation anchors)")
         elif absent:
-            left_out.append(f"{row['task']} (no finished cell for {', '.join(absent)})")
+            left_out.append(f"{TASK_NAMES.get(row['task'], row['task'])} (no finished cell for "
+                            f"{', '.join(METHOD_NAMES.get(m, m) for m in absent)})")
         else:
             tasks.append(row["task"])
     rows = {row["task"]: row for row in grid["rows"]}
@@ -54,7 +59,8 @@ def report(grid: dict, anchors: dict[str, tuple[float, float]]) -> dict:
     if not tasks:
         raise ValueError("no task has a finished cell for every method and normalisation anchors: "
                          + "; ".join(left_out))
-    out = {"tasks": tasks, "left_out": left_out, "methods": {}, "improvement": [],
+    absent = [m for m in {m: 0 for row in grid["rows"] for m in row["methods"]} if m not in methods]
+    out = {"tasks": tasks, "left_out": left_out, "absent_methods": absent, "methods": {}, "improvement": [],
            "definition": stats.AGGREGATE_DEFINITION.format(reps=stats.BOOTSTRAP_REPS, seed=stats.BOOTSTRAP_SEED),
            "anchors": {t: {"random_return": anchors[t][0], "reference_return": anchors[t][1]} for t in tasks}}
     for m in methods:
@@ -79,11 +85,16 @@ def markdown(rep: dict, title: str) -> str:
     names = lambda ms: [METHOD_NAMES.get(m, m) for m in ms]
     lines = [f"# {title}: aggregate scores over tasks", "",
              f"Tasks: {', '.join(TASK_NAMES.get(t, t) for t in rep['tasks'])}"
-             + (f". Left out: {'; '.join(rep['left_out'])}." if rep["left_out"] else "."), "",
+             + (f". Left out: {'; '.join(rep['left_out'])}." if rep["left_out"] else ".")
+             + (f" Methods of the grid without a finished cell: {', '.join(names(rep['absent_methods']))}."
+                if rep.get("absent_methods") else ""), "",
              f"- {rep['definition']}.",
              "- anchors per task (random policy → 0, reference → 1): " + "; ".join(
                  f"{TASK_NAMES.get(t, t)} {stats.fmt(a['random_return'])} → {stats.fmt(a['reference_return'])}"
-                 for t, a in rep["anchors"].items()) + " (results/normalisation.json).", "",
+                 for t, a in rep["anchors"].items()) + " (results/normalisation.json).",
+             *([f"- built {rep['built']['date']} at commit {rep['built']['commit'][:7]}"
+                + (" (uncommitted changes)" if rep["built"]["dirty"] else "")
+                + f" from {rep['built']['grid']} and {rep['built']['anchors']}."] if "built" in rep else []), "",
              "| method | IQM | mean | optimality gap | seeds per task |", "|---|---|---|---|---|"]
     for m, name in zip(rep["methods"], names(rep["methods"])):
         e = rep["methods"][m]
@@ -123,7 +134,7 @@ def plot_profiles(grid: dict, anchors: dict, path: str, title: str) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     from experiments.normalisation import DEFAULT_OUT, load
-    from metapg_jax.reporting import write_json_atomic
+    from metapg_jax.reporting import provenance, write_json_atomic
 
     p = argparse.ArgumentParser(prog="python -m experiments.aggregate", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -137,13 +148,26 @@ def main(argv: list[str] | None = None) -> int:
                                                           if what == "anchors" else ""), file=sys.stderr)
             return 2
     try:
+        anchors = load(args.anchors)
+    except (OSError, ValueError, KeyError, TypeError) as err:
+        print(f"error: {args.anchors} is not an anchors file ({type(err).__name__}: {err})", file=sys.stderr)
+        return 2
+    try:
         with open(args.grid) as f:
             grid = json.load(f)
-        anchors = load(args.anchors)
         rep = report(grid, anchors)
-    except (ValueError, KeyError) as err:
+    except KeyError as err:
+        print(f"error: {args.grid}: a grid's JSON twin needs the field {err} (experiments.tables writes them)",
+              file=sys.stderr)
+        return 2
+    except (OSError, ValueError, TypeError) as err:
         print(f"error: {args.grid}: {err}", file=sys.stderr)
         return 2
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    rel = lambda path: os.path.relpath(os.path.abspath(path), root)
+    built = provenance()
+    rep["built"] = {"date": datetime.date.today().isoformat(), "commit": built["commit"], "dirty": built["dirty"],
+                    "grid": rel(args.grid), "anchors": rel(args.anchors)}
     out = args.out or os.path.dirname(os.path.abspath(args.grid))
     os.makedirs(out, exist_ok=True)
     title = f"{grid.get('preset', '?')} preset" + (f" ({os.path.basename(out)})" if os.path.basename(out) != "results" else "")

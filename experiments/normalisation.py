@@ -64,7 +64,11 @@ def load(path: str = DEFAULT_OUT) -> dict[str, tuple[float, float]]:
     """task -> (low, high): the random policy's and the reference's returns from the anchors file."""
     with open(path) as f:
         tasks = json.load(f)["tasks"]
-    return {t: (a["random_return"], a["reference_return"]) for t, a in tasks.items()}
+    anchors = {t: (float(a["random_return"]), float(a["reference_return"])) for t, a in tasks.items()}
+    for t, (low, high) in anchors.items():
+        if not high > low:
+            raise ValueError(f"{t}: the reference return {high} is not above the random policy's {low}")
+    return anchors
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -187,9 +187,11 @@ BOOTSTRAP_SEED = 0
 
 
 def normalise(returns: Sequence[float], low: float, high: float) -> np.ndarray:
-    """(returns − low) / (high − low): 0 at ``low`` (a random policy's return), 1 at ``high`` (the reference)."""
-    if not (math.isfinite(low) and math.isfinite(high)) or high == low:
-        raise ValueError(f"normalisation needs two different finite anchors, got low={low}, high={high}")
+    """(returns − low) / (high − low): 0 at ``low`` (a random policy's return), 1 at ``high`` (the reference,
+    above ``low``: a reversed pair would reverse the order of the scores)."""
+    if not (math.isfinite(low) and math.isfinite(high) and high > low):
+        raise ValueError(f"normalisation needs finite anchors with the reference above the random policy's "
+                         f"return, got low={low}, high={high}")
     return (np.asarray(returns, np.float64) - low) / (high - low)
 
 

@@ -1,7 +1,8 @@
-"""Deterministic evaluation episodes for reporting.
+"""Evaluation episodes for reporting.
 
-``evaluate`` runs ``num_episodes`` full episodes of a deterministic policy from
-fresh resets in parallel envs and returns their returns. Nothing here is
+``evaluate`` runs ``num_episodes`` full episodes of a policy (the student's deterministic one; or, with
+``stochastic``, a policy that draws its actions, e.g. the random policy of ``experiments.normalisation``)
+from fresh resets in parallel envs and returns their returns. Nothing here is
 stored in the replay buffer or counted toward the sample budget. The loop is a
 ``lax.while_loop`` that stops as soon as every episode has ended (under
 ``vmap`` over seeds: when every seed's episodes have), so evaluations of

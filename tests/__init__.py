@@ -1,7 +1,7 @@
 """The test suite. Its programs are compiled by XLA at optimisation level 0 (set here, before JAX is
 imported, so that pytest's workers, the subprocesses the tests start and ``python -m tests.golden`` all
 compile the same way): the suite's programs are tiny and run for seconds at most, so the compile is most of
-their cost, and level 0 compiles them 10-40% faster than level 1 (and level 1 1.4x faster than the default
+their cost, and level 0 compiles them about 10-30% faster than level 1 (and level 1 1.4x faster than the default
 level 2) while running slower (results/measurements/test-suite.md, "Optimisation levels"). The two tests that
 train for long (tests/test_train.py ``_learning_run``) ask for level 1 for their programs (``RUN_FAST``). The
 numbers differ from other levels' in float32 round-off, so tests/golden_numbers.json holds the numbers at

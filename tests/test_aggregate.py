@@ -21,6 +21,8 @@ def _grid():
                                             "ddpg-normal": cell(-6.0)}},
             {"task": "hopper", "methods": {"meta-independent": {"status": "not run"}, "ddpg-paramnoise": cell(900.0),
                                            "ddpg-normal": cell(1000.0)}}]
+    for row in rows:  # a method the grid planned but never finished
+        row["methods"]["meta-variance"] = {"status": "not run"}
     return {"preset": "paper", "baseline": "ddpg-paramnoise", "rows": rows}
 
 
@@ -31,7 +33,8 @@ def test_the_report_normalises_pools_the_common_tasks_and_compares_teachers_with
     grid = _grid()
     rep = aggregate.report(grid, ANCHORS)
     assert rep["tasks"] == ["pendulum", "reacher"]
-    assert rep["left_out"] == ["hopper (no finished cell for meta-independent)"]
+    assert rep["left_out"] == ["Hopper (no finished cell for Meta (independent))"]
+    assert rep["absent_methods"] == ["meta-variance"] and "meta-variance" not in rep["methods"]
     pooled = np.concatenate([stats.normalise(row["methods"]["ddpg-normal"]["per_seed"], *ANCHORS[row["task"]])
                              for row in grid["rows"][:2]])
     assert rep["methods"]["ddpg-normal"]["IQM"]["point"] == pytest.approx(stats.iqm(pooled))
@@ -43,7 +46,8 @@ def test_the_report_normalises_pools_the_common_tasks_and_compares_teachers_with
     assert better["point"] == 1.0 and better["lo"] <= better["point"] <= better["hi"]
     md = aggregate.markdown(rep, "paper preset")
     assert "| Meta (independent) | DDPG (param noise) | 1.00 [1.00, 1.00] |" in md
-    assert "Left out: hopper (no finished cell for meta-independent)." in md
+    assert "Left out: Hopper (no finished cell for Meta (independent))." in md
+    assert "Methods of the grid without a finished cell: Meta (variance)." in md
     with pytest.raises(ValueError, match="no task has a finished cell for every method"):
         aggregate.report(grid, {"hopper": ANCHORS["hopper"]})
 
@@ -56,9 +60,19 @@ def test_the_command_writes_the_report_and_refuses_missing_files(tmp_path, capsy
     assert aggregate.main([str(grid_path), "--anchors", str(anchors_path)]) == 0
     assert sorted(os.listdir(tmp_path)) == ["aggregate.json", "aggregate.md", "anchors.json",
                                             "performance_profiles.png", "table2.json"]
-    assert json.loads((tmp_path / "aggregate.json").read_text())["tasks"] == ["pendulum", "reacher"]
+    written = json.loads((tmp_path / "aggregate.json").read_text())
+    assert written["tasks"] == ["pendulum", "reacher"] and written["built"]["commit"]
+    assert f"at commit {written['built']['commit'][:7]}" in (tmp_path / "aggregate.md").read_text()
     assert aggregate.main([str(grid_path), "--anchors", str(tmp_path / "none.json")]) == 2
     assert "anchors file" in capsys.readouterr().err
+    reversed_anchors = tmp_path / "reversed.json"
+    reversed_anchors.write_text(json.dumps({"tasks": {"pendulum": {"random_return": 0.0, "reference_return": -1.0}}}))
+    assert aggregate.main([str(grid_path), "--anchors", str(reversed_anchors)]) == 2
+    assert "pendulum: the reference return -1.0 is not above the random policy's 0.0" in capsys.readouterr().err
+    broken = tmp_path / "broken.json"
+    broken.write_text(json.dumps({"rows": [{"task": "pendulum"}]}))
+    assert aggregate.main([str(broken), "--anchors", str(anchors_path)]) == 2
+    assert "needs the field 'methods'" in capsys.readouterr().err
 
 
 def test_the_random_policys_returns_anchor_zero(tmp_path, capsys):

@@ -61,8 +61,9 @@ def test_the_estimators_follow_their_definitions():
     u = sps.mannwhitneyu(x, y, alternative="greater").statistic
     assert stats.probability_of_improvement([x], [y])[0] == pytest.approx(u / 6) == pytest.approx(4.5 / 6)
     np.testing.assert_allclose(stats.normalise([-10.0, 0.0, 30.0], -10.0, 30.0), [0.0, 0.25, 1.0])
-    with pytest.raises(ValueError, match="two different finite anchors"):
-        stats.normalise([1.0], 2.0, 2.0)
+    for low, high in ((2.0, 2.0), (3.0, 2.0), (0.0, math.inf)):  # equal, reversed, infinite
+        with pytest.raises(ValueError, match="reference above the random policy"):
+            stats.normalise([1.0], low, high)
 
 
 def test_the_bootstrap_is_seeded_stratified_and_takes_tasks_of_any_seed_count():
