@@ -271,7 +271,10 @@ def test_seed_results_do_not_depend_on_the_device_count(tmp_path, monkeypatch, c
     # The same 2 seeds on 1 device (here) and on 2 devices (one each, a process of its own). Not bitwise:
     # XLA compiles the vmapped program for other batch shapes (1 or 2 seeds per device, or 4 seeds in
     # total), which changes float32 round-off (~1e-7 relative), and RL training amplifies round-off over
-    # many updates (measured 4e-4 after 3 cycles of 50 updates). So compare after one cycle.
+    # many updates (measured 4e-4 after 3 cycles of 50 updates). So compare after one cycle. Even there two
+    # outcomes occur: a bias of seed 1 ends at 0.0018785 or 0.0018656 (2.4e-5 apart) depending on the
+    # optimisation level, the jax version and the device count (jax 0.12 at the suite's level 0 gives both),
+    # far below the 1e-2 between two seeds checked below.
     one, two = str(tmp_path / "one_device"), str(tmp_path / "two_devices")
     p2 = _subprocess(TINY + ["--steps=300", "--out", two], env={"XLA_FLAGS": xla_flags("--xla_force_host_platform_device_count=2")})
     assert run.main(TINY + ["--steps=300", "--out", one]) == 0
@@ -280,7 +283,7 @@ def test_seed_results_do_not_depend_on_the_device_count(tmp_path, monkeypatch, c
     assert "on 1 cpu device(s)" in capsys.readouterr().out and "on 2 cpu device(s)" in out2
     a, b = _policy_arrays(one), _policy_arrays(two)
     for k in a:
-        np.testing.assert_allclose(a[k], b[k], rtol=1e-4, atol=1e-6, err_msg=k)
+        np.testing.assert_allclose(a[k], b[k], rtol=1e-4, atol=1e-4, err_msg=k)
     # ... while different seeds differ by orders of magnitude more.
     assert np.abs(a["actor/dense_0/kernel"][0] - a["actor/dense_0/kernel"][1]).max() > 1e-2
     # A seed count the devices do not divide is refused before anything is written (two processes:
