@@ -32,11 +32,16 @@ from experiments.grid import METHOD_NAMES, TASK_NAMES, noise_methods
 PROFILE_TAUS = np.linspace(0.0, 2.0, 81)
 
 
+def grid_methods(grid: dict) -> list[str]:
+    """Every method the grid's rows name, in their order."""
+    return list({m: 0 for row in grid["rows"] for m in row["methods"]})
+
+
 def grid_scores(grid: dict, anchors: dict[str, tuple[float, float]]) -> tuple[list[str], list[str], dict, list[str]]:
     """(tasks, methods, scores, left_out): the tasks where every method has a finished cell and an anchor,
     the methods with a finished cell somewhere, {method: [normalised per-seed scores of each task]}, and the
     tasks left out with why (as the tables name tasks and methods)."""
-    methods = [m for m in {m: 0 for row in grid["rows"] for m in row["methods"]}
+    methods = [m for m in grid_methods(grid)
                if any(row["methods"].get(m, {}).get("status") == "done" for row in grid["rows"])]
     tasks, left_out = [], []
     for row in grid["rows"]:
@@ -53,13 +58,13 @@ def grid_scores(grid: dict, anchors: dict[str, tuple[float, float]]) -> tuple[li
     return tasks, methods, scores, left_out
 
 
-def report(grid: dict, anchors: dict[str, tuple[float, float]]) -> dict:
-    """The aggregate numbers of a grid (``grid_scores``'s tasks), JSON-ready."""
-    tasks, methods, scores, left_out = grid_scores(grid, anchors)
+def report(grid: dict, anchors: dict[str, tuple[float, float]], scored=None) -> dict:
+    """The aggregate numbers of a grid (``grid_scores``'s tasks, or ``scored``: its result), JSON-ready."""
+    tasks, methods, scores, left_out = scored or grid_scores(grid, anchors)
     if not tasks:
         raise ValueError("no task has a finished cell for every method and normalisation anchors: "
                          + "; ".join(left_out))
-    absent = [m for m in {m: 0 for row in grid["rows"] for m in row["methods"]} if m not in methods]
+    absent = [m for m in grid_methods(grid) if m not in methods]
     out = {"tasks": tasks, "left_out": left_out, "absent_methods": absent, "methods": {}, "improvement": [],
            "definition": stats.AGGREGATE_DEFINITION.format(reps=stats.BOOTSTRAP_REPS, seed=stats.BOOTSTRAP_SEED),
            "anchors": {t: {"random_return": anchors[t][0], "reference_return": anchors[t][1]} for t in tasks}}
@@ -109,14 +114,14 @@ def markdown(rep: dict, title: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot_profiles(grid: dict, anchors: dict, path: str, title: str) -> None:
-    """Performance profiles: the fraction of seeds (pooled over the tasks) above each normalised score."""
+def plot_profiles(methods: list[str], scores: dict, path: str, title: str) -> None:
+    """Performance profiles of ``grid_scores``'s methods and scores: the fraction of seeds (pooled over the
+    tasks) above each normalised score."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    _, methods, scores, _ = grid_scores(grid, anchors)
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     for m in methods:
         point, lo, hi = stats.performance_profile(scores[m], PROFILE_TAUS)
@@ -155,7 +160,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with open(args.grid) as f:
             grid = json.load(f)
-        rep = report(grid, anchors)
+        scored = grid_scores(grid, anchors)
+        rep = report(grid, anchors, scored)
     except KeyError as err:
         print(f"error: {args.grid}: a grid's JSON twin needs the field {err} (experiments.tables writes them)",
               file=sys.stderr)
@@ -174,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
     write_json_atomic(os.path.join(out, "aggregate.json"), rep)
     with open(os.path.join(out, "aggregate.md"), "w") as f:
         f.write(markdown(rep, title))
-    plot_profiles(grid, anchors, os.path.join(out, "performance_profiles.png"), title)
+    plot_profiles(scored[1], scored[2], os.path.join(out, "performance_profiles.png"), title)
     print(f"wrote aggregate.md, aggregate.json and performance_profiles.png to {out}")
     return 0
 

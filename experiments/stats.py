@@ -121,11 +121,19 @@ def welch_difference(a: Sequence[float], b: Sequence[float], level: float = 0.95
     diff = float(a.mean() - b.mean()) if a.size and b.size else math.nan
     if a.size < 2 or b.size < 2:
         return diff, math.nan
+    se, df = _welch_se_df(a, b)
+    if se == 0:
+        return diff, 0.0
+    return diff, float(stats.t.ppf(0.5 + level / 2, df) * se)
+
+
+def _welch_se_df(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """The standard error of mean(a) − mean(b), sqrt(s_a^2/n_a + s_b^2/n_b), and its Welch-Satterthwaite degrees of
+    freedom (NaN when both variances are 0); a and b have at least 2 values each."""
     va, vb = np.var(a, ddof=1) / a.size, np.var(b, ddof=1) / b.size
     if va + vb == 0:
-        return diff, 0.0
-    df = (va + vb) ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1))
-    return diff, float(stats.t.ppf(0.5 + level / 2, df) * math.sqrt(va + vb))
+        return 0.0, math.nan
+    return math.sqrt(va + vb), float((va + vb) ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1)))
 
 
 def verdict(a: Sequence[float], b: Sequence[float], alpha: float = 0.05) -> tuple[float, float, str]:
@@ -300,11 +308,9 @@ def tost(a: Sequence[float], b: Sequence[float], margin: float) -> float:
     if a.size < 2 or b.size < 2 or not margin > 0:
         return math.nan
     diff = float(a.mean() - b.mean())
-    va, vb = np.var(a, ddof=1) / a.size, np.var(b, ddof=1) / b.size
-    se = math.sqrt(va + vb)
+    se, df = _welch_se_df(a, b)
     if se == 0:
         return 0.0 if abs(diff) < margin else 1.0
-    df = (va + vb) ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1))
     p_low = stats.t.sf((diff + margin) / se, df)    # H0: diff <= -margin
     p_high = stats.t.cdf((diff - margin) / se, df)  # H0: diff >= +margin
     return float(max(p_low, p_high))

@@ -33,13 +33,13 @@ def evaluate(env: Env, act: Callable[..., jax.Array], key: jax.Array,
     """
     if isinstance(env, AutoResetWrapper):
         env = env.env
-    k_reset, k_act = jax.random.split(key)
-    state = jax.vmap(env.reset)(jax.random.split(k_reset if stochastic else key, num_episodes))
-    step = jax.vmap(env.step)
     if stochastic:
+        key, k_act = jax.random.split(key)
         batch_act = lambda obs, t: jax.vmap(act)(obs, jax.random.split(jax.random.fold_in(k_act, t), num_episodes))
     else:
         batch_act = lambda obs, t: jax.vmap(act)(obs)
+    state = jax.vmap(env.reset)(jax.random.split(key, num_episodes))
+    step = jax.vmap(env.step)
 
     def cond(c):
         t, _, _, _, done = c
