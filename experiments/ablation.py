@@ -122,7 +122,20 @@ def compare(runs: Sequence[tuple[str, cells.RunResult]], upto: int) -> list[dict
                      "diff": {} if i == 0 else config_diff(r.config, control.config),
                      "teacher": teacher_log_std(r.path, r.config, upto),
                      "budget": r.budget, "commit": r.provenance.get("commit") or r.info.get("commit")})
+    judged = stats.judge_family([(r["finals"], finals_control, _margin(control.task)) for r in rows[1:]])
+    for r, j in zip(rows[1:], judged):
+        r["judged"] = j
     return rows
+
+
+def _margin(task: str) -> float | None:
+    """The task's equivalence margin from the normalisation anchors (None without them)."""
+    from experiments import normalisation
+
+    if not os.path.exists(normalisation.DEFAULT_OUT):
+        return None
+    low_high = normalisation.load(normalisation.DEFAULT_OUT).get(task)
+    return None if low_high is None else stats.EQUIVALENCE_MARGIN * (low_high[1] - low_high[0])
 
 
 def _diff_text(row: dict) -> str:
@@ -140,19 +153,21 @@ def markdown(rows: list[dict], task: str, upto: int, build: dict) -> str:
              f"Final return = mean of the last {control['final_evaluations']} of the "
              f"{control['evaluations']} evaluations up to {upto:,} steps (10%, at least 1), per seed; "
              "mean ± std over seeds (ddof=1); 95% CI: Student t; p: two-sided Welch t-test of the seeds' "
-             "final returns vs the control. Teacher log-std: per seed over the same evaluations (each the mean "
+             "final returns vs the control, Holm p: corrected over the variants (one family); "
+             + stats.VERDICT_DEFINITION + ". Teacher log-std: per seed over the same evaluations (each the mean "
              "over its chunk's cycles), then the seed-mean (Meta runs only); 'at floor': seeds within 0.01 "
              "of `meta.min_log_std`. "
              "Per-seed numbers: `per_seed.csv`; curves: `curves.png`.", "",
              "| run | changed vs control (from the stored configs) | final (mean ± std) | 95% CI | p vs control "
-             "| teacher log-std | seeds at floor |", "|---|---|---|---|---|---|---|"]
+             "| Holm p | verdict | teacher log-std | seeds at floor |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         t = r["teacher"]
         log_std = "–" if t is None else stats.fmt(t["mean"], 2)
         at_floor = "–" if t is None else f"{t['seeds_at_floor']} of {len(t['per_seed'])}"
         p = "–" if r["control"] else stats.fmt_p(r["p_vs_control"])
+        holm, word = ("–", "–") if r["control"] else (stats.fmt_p(r["judged"]["p_holm"]), r["judged"]["verdict"])
         lines.append(f"| {r['name']} | {_diff_text(r)} | {stats.fmt(r['mean'])} ± {stats.fmt(r['std'])} | "
-                     f"± {stats.fmt(r['ci_half'])} | {p} | {log_std} | {at_floor} |")
+                     f"± {stats.fmt(r['ci_half'])} | {p} | {holm} | {word} | {log_std} | {at_floor} |")
     lines += ["", "---", "",
               f"Built {build['built']} at commit `{build.get('commit') or 'unknown'}` on "
               f"{build['machine']['platform']}. Runs (folder; stored budget; commit of the run):"]

@@ -86,8 +86,10 @@ def _interval(e: dict) -> str:
     return f"{stats.fmt(e['point'], 2)} [{stats.fmt(e['lo'], 2)}, {stats.fmt(e['hi'], 2)}]"
 
 
-def markdown(rep: dict, title: str) -> str:
-    names = lambda ms: [METHOD_NAMES.get(m, m) for m in ms]
+def markdown(rep: dict, title: str, labels: dict | None = None) -> str:
+    """aggregate.md; ``labels``: names for methods that ``experiments.grid.METHOD_NAMES`` does not have."""
+    labels = {**METHOD_NAMES, **(labels or {})}
+    names = lambda ms: [labels.get(m, m) for m in ms]
     lines = [f"# {title}: aggregate scores over tasks", "",
              f"Tasks: {', '.join(TASK_NAMES.get(t, t) for t in rep['tasks'])}"
              + (f". Left out: {'; '.join(rep['left_out'])}." if rep["left_out"] else ".")
@@ -110,13 +112,14 @@ def markdown(rep: dict, title: str) -> str:
               "0.5 = neither tends to end higher. 95% stratified bootstrap interval in brackets.", "",
               "| X | Y | P(X > Y) |", "|---|---|---|"]
     for p in rep["improvement"]:
-        lines.append(f"| {METHOD_NAMES.get(p['x'], p['x'])} | {METHOD_NAMES.get(p['y'], p['y'])} | {_interval(p)} |")
+        lines.append(f"| {labels.get(p['x'], p['x'])} | {labels.get(p['y'], p['y'])} | {_interval(p)} |")
     return "\n".join(lines) + "\n"
 
 
-def plot_profiles(methods: list[str], scores: dict, path: str, title: str) -> None:
+def plot_profiles(methods: list[str], scores: dict, path: str, title: str, labels: dict | None = None) -> None:
     """Performance profiles of ``grid_scores``'s methods and scores: the fraction of seeds (pooled over the
     tasks) above each normalised score."""
+    labels = {**METHOD_NAMES, **(labels or {})}
     import matplotlib
 
     matplotlib.use("Agg")
@@ -125,7 +128,7 @@ def plot_profiles(methods: list[str], scores: dict, path: str, title: str) -> No
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     for m in methods:
         point, lo, hi = stats.performance_profile(scores[m], PROFILE_TAUS)
-        line, = ax.plot(PROFILE_TAUS, point, label=METHOD_NAMES.get(m, m))
+        line, = ax.plot(PROFILE_TAUS, point, label=labels.get(m, m))
         ax.fill_between(PROFILE_TAUS, lo, hi, alpha=0.15, color=line.get_color())
     ax.set_xlabel("normalised final return τ (0 = random policy, 1 = reference)")
     ax.set_ylabel("fraction of seeds with score > τ")
@@ -137,9 +140,30 @@ def plot_profiles(methods: list[str], scores: dict, path: str, title: str) -> No
     plt.close(fig)
 
 
+def repo_path(path: str) -> str:
+    """``path`` relative to the repository's root, as the reports name their inputs."""
+    return os.path.relpath(os.path.abspath(path), os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def write(rep: dict, scored: tuple, out: str, title: str, built: dict, labels: dict | None = None) -> list[str]:
+    """aggregate.json, aggregate.md and performance_profiles.png of ``report``'s ``rep`` (from ``scored``, the
+    result of ``grid_scores``) in ``out``, with ``built`` (date, commit, dirty, grid, anchors) as provenance;
+    ``labels``: as ``markdown``'s."""
+    from metapg_jax.reporting import write_json_atomic
+
+    os.makedirs(out, exist_ok=True)
+    rep["built"] = built
+    paths = [os.path.join(out, n) for n in ("aggregate.md", "aggregate.json", "performance_profiles.png")]
+    write_json_atomic(paths[1], rep)
+    with open(paths[0], "w") as f:
+        f.write(markdown(rep, title, labels))
+    plot_profiles(scored[1], scored[2], paths[2], title, labels)
+    return paths
+
+
 def main(argv: list[str] | None = None) -> int:
     from experiments.normalisation import DEFAULT_OUT, load
-    from metapg_jax.reporting import provenance, write_json_atomic
+    from metapg_jax.reporting import provenance
 
     p = argparse.ArgumentParser(prog="python -m experiments.aggregate", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -169,18 +193,12 @@ def main(argv: list[str] | None = None) -> int:
     except (OSError, ValueError, TypeError) as err:
         print(f"error: {args.grid}: {err}", file=sys.stderr)
         return 2
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    rel = lambda path: os.path.relpath(os.path.abspath(path), root)
     built = provenance()
-    rep["built"] = {"date": datetime.date.today().isoformat(), "commit": built["commit"], "dirty": built["dirty"],
-                    "grid": rel(args.grid), "anchors": rel(args.anchors)}
     out = args.out or os.path.dirname(os.path.abspath(args.grid))
-    os.makedirs(out, exist_ok=True)
     title = f"{grid.get('preset', '?')} preset" + (f" ({os.path.basename(out)})" if os.path.basename(out) != "results" else "")
-    write_json_atomic(os.path.join(out, "aggregate.json"), rep)
-    with open(os.path.join(out, "aggregate.md"), "w") as f:
-        f.write(markdown(rep, title))
-    plot_profiles(scored[1], scored[2], os.path.join(out, "performance_profiles.png"), title)
+    write(rep, scored, out, title, {"date": datetime.date.today().isoformat(), "commit": built["commit"],
+                                    "dirty": built["dirty"], "grid": repo_path(args.grid),
+                                    "anchors": repo_path(args.anchors)})
     print(f"wrote aggregate.md, aggregate.json and performance_profiles.png to {out}")
     return 0
 

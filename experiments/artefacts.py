@@ -56,17 +56,23 @@ import sys
 from typing import Sequence
 
 from experiments import cells, figures, tables
-from experiments.grid import BASELINES, GRIDS, TASKS, baseline_for, methods_for
+from experiments.grid import BASELINES, GRIDS, TASKS, baseline_for, grid_label, methods_for
 
 
 def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Sequence[str] = TASKS,
               methods: Sequence[str] | None = None, embedding: str = "tsne", visitation_tasks: Sequence[str] | None = None,
-              points_per_panel: int = 500, extra_provenance: dict | None = None, student: str = "ddpg") -> dict:
+              points_per_panel: int = 500, extra_provenance: dict | None = None, student: str = "ddpg",
+              anchors_path: str | None = None) -> dict:
     """Rebuilds every artefact from ``<runs_dir>/<preset>/<task>/<method>``; returns the manifest.
 
     ``methods`` defaults to ``student``'s grid (``experiments.grid.methods_for``). Finished run folders are
     first copied into the committed archive ``<results>/cells/<task>/<method>`` (``cells.archive_cell``);
-    cells without a finished run folder are read from there."""
+    cells without a finished run folder are read from there. The tables show the tasks and methods with a
+    stored cell (the grid's others are listed in README.md and the manifest, not shown as "not run").
+    ``anchors_path`` (default ``results/normalisation.json``, when it exists): the normalisation anchors of
+    the aggregate scores and of the verdicts' equivalence margins."""
+    from experiments import aggregate, normalisation
+
     methods = methods_for(student) if methods is None else tuple(methods)
     out_dir = cells.results_dir_for(results_dir, preset)
     os.makedirs(out_dir, exist_ok=True)
@@ -77,6 +83,11 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
             cells.archive_cell(os.path.join(runs_dir, preset, task, method), os.path.join(archive, task, method),
                                method, baseline)
     results = cells.collect(os.path.join(runs_dir, preset), tasks, methods, archive_dir=archive)
+    planned_tasks, planned_methods = tuple(tasks), tuple(methods)
+    tasks = [t for t in planned_tasks if any((t, m) in results for m in methods)]
+    methods = [m for m in planned_methods if any((t, m) in results for t in tasks)]
+    anchors_path = normalisation.DEFAULT_OUT if anchors_path is None else anchors_path
+    anchors = normalisation.load(anchors_path) if os.path.exists(anchors_path) else None
     build = cells.build_info(runs_dir)
     build["preset"] = preset
     if student != "ddpg":
@@ -85,8 +96,25 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
         build.update(extra_provenance)
     footer = cells.provenance_footer(build, results.values())
     rows = tables.table2_rows(results, tasks, methods, baseline)
+    families = tables.verdict_families(rows, methods, baseline, anchors)
     files = tables.write_table2(rows, methods, out_dir, footer, preset, build["commit"],
-                                tables.engines_text(results.values()), student=student)
+                                tables.engines_text(results.values()), student=student, families=families)
+    aggregate_note = None
+    if anchors is None:
+        aggregate_note = f"no normalisation anchors ({aggregate.repo_path(anchors_path)} not found)"
+    else:
+        scored = aggregate.grid_scores({"rows": rows}, anchors)
+        if scored[0]:
+            rep = aggregate.report({"rows": rows}, anchors, scored)
+            files += aggregate.write(rep, scored, out_dir, grid_label(preset, student), {
+                "date": build["built"][:10], "commit": build["commit"], "dirty": build["dirty"],
+                "grid": "table2.json", "anchors": aggregate.repo_path(anchors_path)})
+        else:
+            aggregate_note = "no task has a finished cell for every method: " + "; ".join(scored[3])
+    if aggregate_note:  # only what this build writes stays
+        for stale in ("aggregate.md", "aggregate.json", "performance_profiles.png"):
+            if os.path.exists(os.path.join(out_dir, stale)):
+                os.remove(os.path.join(out_dir, stale))
     files += figures.write_curves(results, tasks, methods, out_dir, build, preset, student=student)
     files += tables.write_steps_to_threshold(tables.steps_to_threshold_rows(results, tasks, methods, baseline),
                                              out_dir, footer, preset, build["commit"], student=student)
@@ -94,6 +122,11 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
                                       build["commit"], student=student)
     files += tables.write_behaviour(tables.behaviour_rows(results, tasks, methods), out_dir, footer, preset,
                                     build["commit"], student=student)
+    for stale in ("coverage.md", "coverage.json"):  # only what this build writes stays
+        if os.path.exists(os.path.join(out_dir, stale)):
+            os.remove(os.path.join(out_dir, stale))
+    files += tables.write_coverage(tables.coverage_rows(results, tasks, baseline), out_dir, footer, preset, baseline,
+                                   build["commit"], student=student)
     files += figures.write_teacher_designs(results, out_dir, build, preset, student=student)
     for stale in glob.glob(os.path.join(out_dir, "visitation_*.png")):  # only what this build draws stays
         os.remove(stale)
@@ -102,8 +135,11 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
                                       embedding, points_per_panel, baseline=baseline)
     manifest = {"build": build, "files": [os.path.relpath(p, out_dir) for p in files] + ["README.md"],
                 "cells": [cells.cell_provenance(r) for r in results.values()],
-                "not_run": [[t, m] for t in tasks for m in methods if (t, m) not in results]}
-    files.append(tables.write_readme(out_dir, manifest, rows, methods, footer))
+                "not_run": [[t, m] for t in tasks for m in methods if (t, m) not in results],
+                "grid_without_cells": {"tasks": [t for t in planned_tasks if t not in tasks],
+                                       "methods": [m for m in planned_methods if m not in methods]},
+                **({"aggregate_not_built": aggregate_note} if aggregate_note else {})}
+    files.append(tables.write_readme(out_dir, manifest, rows, methods, footer, families))
     with open(os.path.join(out_dir, "manifest.json"), "w") as f:
         json.dump(manifest, f, indent=2, default=tables.json_default)
     return manifest

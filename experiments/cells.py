@@ -117,6 +117,9 @@ def collect(preset_dir: str, tasks: Iterable[str] = TASKS, methods: Iterable[str
 # What a finished cell keeps in the committed archive (``<results>/cells/<task>/<method>``): everything the
 # artefacts read. Model checkpoints and the run's own PNGs stay in the run folder (gitignored).
 ARCHIVE_FILES = ("config.json", "metrics.jsonl", "summary.json", "reproduce.json")
+# A call started from a tree with uncommitted code changes stores them beside the cell (experiments.reproduce):
+# uncommitted-<call>.diff, archived with it.
+DIFF_PATTERN = "uncommitted-*.diff"
 # visits.npz (the state-visitation sample) is kept for the two methods the figure compares, thinned to
 # this many states per seed and array (evenly spaced; the figure draws <= 500 points per panel).
 ARCHIVE_VISITS_PER_SEED = 250
@@ -133,16 +136,32 @@ def archive_dir_for(results_dir: str, preset: str) -> str:
 
 
 def copy_result_files(run_path: str, archive_path: str) -> None:
-    """Copies the ``ARCHIVE_FILES`` a run folder has into ``archive_path``, each atomically."""
+    """Copies the ``ARCHIVE_FILES`` and stored diffs (``DIFF_PATTERN``) a run folder has into ``archive_path``,
+    each atomically."""
+    import glob
     import shutil
 
     os.makedirs(archive_path, exist_ok=True)
-    for name in ARCHIVE_FILES:
+    diffs = sorted(os.path.basename(d) for d in glob.glob(os.path.join(run_path, DIFF_PATTERN)))
+    for name in (*ARCHIVE_FILES, *diffs):
         src = os.path.join(run_path, name)
         if os.path.exists(src):
             tmp = os.path.join(archive_path, name + ".tmp")
             shutil.copyfile(src, tmp)
             os.replace(tmp, os.path.join(archive_path, name))
+
+
+def thin_visits(visits: dict) -> dict:
+    """A visitation sample thinned as the archive keeps it: at most ``ARCHIVE_VISITS_PER_SEED`` evenly spaced
+    states per seed and array (the counts unchanged); an archived sample is returned as it is."""
+    thinned = {}
+    for k, x in visits.items():
+        x = np.asarray(x)
+        if x.ndim >= 2 and x.shape[-2] > ARCHIVE_VISITS_PER_SEED:  # (..., states, obs)
+            idx = np.linspace(0, x.shape[-2] - 1, ARCHIVE_VISITS_PER_SEED).round().astype(int)
+            x = np.take(x, idx, axis=-2)
+        thinned[k] = x
+    return thinned
 
 
 def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = BASELINE) -> bool:
@@ -155,20 +174,49 @@ def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = 
     visits = os.path.join(run_path, "visits.npz")
     if method in (META, baseline) and os.path.exists(visits):
         with np.load(visits) as v:
-            thinned = {}
-            for k, x in v.items():
-                if x.ndim >= 2 and x.shape[-2] > ARCHIVE_VISITS_PER_SEED:  # (..., states, obs)
-                    idx = np.linspace(0, x.shape[-2] - 1, ARCHIVE_VISITS_PER_SEED).round().astype(int)
-                    x = np.take(x, idx, axis=-2)
-                thinned[k] = x
+            thinned = thin_visits(dict(v))
         reporting.savez_atomic(os.path.join(archive_path, "visits.npz"), thinned)
     return True
 
 
 # ---------------------------------------------------------------------------------------------- provenance
 
+def stored_diffs(r: RunResult) -> list[str]:
+    """The uncommitted changes stored beside a cell (``DIFF_PATTERN``), by file name."""
+    import glob
+
+    return sorted(os.path.basename(d) for d in glob.glob(os.path.join(r.path, DIFF_PATTERN)))
+
+
+def cell_physics(r: RunResult) -> tuple[str, bool]:
+    """(engine, recorded): the physics engine the cell's config names ('jax' for Pendulum, which has no MuJoCo
+    model); a config without the field predates MuJoCo's C engine in this project, so its cell ran on MJX, the
+    only engine then (recorded False)."""
+    if r.task == "pendulum":
+        return "jax", True
+    physics = r.config.get("env", {}).get("physics")
+    return (physics, True) if physics else ("mjx", False)
+
+
+def run_commits(r: RunResult) -> list[str]:
+    """Every commit the cell's code ran at: its start (config.json), each recorded call (reproduce.json) and each
+    budget extension (config.json's ``extensions``)."""
+    found = [r.provenance.get("commit"), r.info.get("commit"), *(r.provenance.get("commits") or []),
+             *(e.get("commit") for e in r.info.get("extensions", []))]
+    return sorted({c for c in found if c and c != "unknown"})
+
+
+def is_dirty(r: RunResult) -> bool:
+    """Whether the cell's code ran from a tree with uncommitted changes at any point: its start, a recorded call
+    or a budget extension."""
+    calls = r.provenance.get("calls") or []
+    return bool(r.provenance.get("dirty") or r.info.get("dirty") or any(c.get("dirty") for c in calls)
+                or any(e.get("dirty") for e in r.info.get("extensions", [])))
+
+
 def cell_provenance(r: RunResult) -> dict:
-    """What a result cell was made from: commit, config, seeds, budget, machine, wall time.
+    """What a result cell was made from: commit(s), whether a tree had uncommitted changes and the diffs stored
+    for them, physics engine, config, seeds, budget, machine, wall time.
 
     ``wall_seconds`` is reproduce.json's (the recorded calls, compile included) or else the run's own
     summary; ``train_seconds_all_calls`` adds up the training time of every call from the metrics rows."""
@@ -178,7 +226,9 @@ def cell_provenance(r: RunResult) -> dict:
         wall = (r.summary.get("compile_seconds") or 0) + (r.summary.get("train_seconds") or 0)
     return {
         "task": r.task, "method": r.method, "path": r.path, "complete": r.complete,
-        "commit": prov.get("commit"), "seeds": r.num_seeds, "base_seed": r.run_args.get("seed"),
+        "commit": prov.get("commit"), "commits": run_commits(r),
+        "dirty": is_dirty(r), "diffs": stored_diffs(r), "physics": cell_physics(r)[0],
+        "physics_recorded": cell_physics(r)[1], "seeds": r.num_seeds, "base_seed": r.run_args.get("seed"),
         "budget_env_steps": r.budget, "env_steps_done": r.env_steps_done, "evaluations": int(r.steps.size),
         "preset": r.config.get("preset"), "run_args": r.run_args, "config": r.config,
         "machine": prov.get("machine") or {k: r.info.get(k) for k in ("jax_version", "backend", "devices")},
@@ -190,16 +240,29 @@ def cell_provenance(r: RunResult) -> dict:
 
 
 def provenance_footer(build: dict, cells: Iterable[RunResult]) -> str:
-    """Markdown lines: commit and machine of this build and of the runs used."""
+    """Markdown lines: commit and machine of this build; every commit the runs used, how many cells ran from a
+    tree with uncommitted changes (and whether their diffs are stored) and the engines."""
     cells = list(cells)
-    commits = sorted({commit for c in cells
-                      for commit in (c.provenance.get("commits") or [c.provenance.get("commit") or "unknown"])})
+    commits = sorted({commit for c in cells for commit in run_commits(c)} or {"unknown"})
+    dirty = [c for c in cells if is_dirty(c)]
+    undiffed = [c for c in dirty if not stored_diffs(c)]
+    physics = {cell_physics(c) for c in cells}
+    inferred = sorted({p for p, recorded in physics if not recorded})
     lines = ["", "---", "",
              f"Built {build['built']} from `{build['runs_dir']}` at commit `{build['commit'] or 'unknown'}`"
              f"{' (uncommitted changes)' if build.get('dirty') else ''} on {build['machine']['platform']} "
              f"({build['machine']['cpu_count']} CPUs). Runs used: {len(cells)}"
              + (f", made at commit(s) {', '.join(f'`{c}`' for c in commits)}" if cells else "")
-             + ". Per-cell config, seeds, budget, machine and wall time: `manifest.json`."]
+             + (f"; engines: {', '.join(sorted({p for p, _ in physics}))}"
+                + (f" ({', '.join(inferred)} inferred for cells whose config predates the physics option)"
+                   if inferred else "") if cells else "")
+             + "."
+             + (f" {len(dirty)} of {len(cells)} cells ran from a tree with uncommitted changes"
+                + (f" ({len(undiffed)} without a stored diff: "
+                   + ", ".join(f"{c.task}/{c.method}" for c in undiffed) + ")" if undiffed else
+                   " (their diffs are stored beside them)") + "." if dirty else "")
+             + " Per-cell commits, dirty flag, diffs, engine, config, seeds, budget, machine and wall time: "
+               "`manifest.json`."]
     return "\n".join(lines) + "\n"
 
 

@@ -3,6 +3,13 @@
     python -m experiments.export runs/pendulum-meta-paper-s0                 # latest checkpoint
     python -m experiments.export runs/pendulum-meta-paper-s0 --chunk 10 --out policy_10.npz
 
+    python -m experiments.export RUN --replay 10 --report replay.json   # and replay them in gymnasium
+
+``--replay N`` runs each seed's exported policy for N episodes in gymnasium's own environment of the task
+(MuJoCo's C engine, episode seeds 0..N-1, actions mapped from [-1, 1] to the env's bounds) and sets the
+mean return beside the run's last in-training evaluation (``metrics.jsonl``); ``--report`` stores both as
+JSON with the run's provenance and the command.
+
 Then, anywhere (NumPy only)::
 
     from metapg_jax import load_policy
@@ -24,7 +31,14 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("run_dir", help="a run folder written by experiments.run")
     p.add_argument("--chunk", type=int, default=None, help="checkpoint to export (chunks done); default the latest")
     p.add_argument("--out", default=None, help="output file (default RUN_DIR/policy.npz, or policy_<chunk>.npz)")
+    p.add_argument("--replay", type=int, default=0, metavar="N",
+                   help="replay each seed's exported policy for N episodes in gymnasium's environment of the task")
+    p.add_argument("--report", default=None, help="with --replay: write the replay's returns to this JSON file")
     args = p.parse_args(argv)
+    if args.replay < 0 or (args.report and not args.replay):
+        print("error: --replay takes a positive number of episodes" if args.replay < 0 else
+              "error: --report needs --replay N", file=sys.stderr)
+        return 2
     path = os.path.join(args.run_dir, "config.json")
     if not os.path.exists(path):
         print(f"error: {args.run_dir} has no config.json (not a run folder)", file=sys.stderr)
@@ -69,7 +83,74 @@ def main(argv: list[str] | None = None) -> int:
     export_policies(out, cfg, jax.device_get(state.student.actor), jax.device_get(state.normalizer))
     print(f"exported {a['seeds']} policies after {meta['chunks_done']} chunks "
           f"({meta['chunks_done'] * cfg.run.eval_every:,} env steps) to {out}")
+    if args.replay:
+        report = replay_report(out, cfg, args.run_dir, meta["chunks_done"], args.replay,
+                               ["python", "-m", "experiments.export", *(sys.argv[1:] if argv is None else argv)])
+        for seed in report["seeds"]:
+            print(f"seed {seed['seed']}: gymnasium {seed['replay_mean']:,.1f} over {args.replay} episodes, "
+                  f"in-training evaluation {seed['training_eval']:,.1f}")
+        if args.report:
+            from metapg_jax.reporting import write_json_atomic
+
+            write_json_atomic(args.report, report)
+            print(f"wrote {args.report}")
     return 0
+
+
+def replay_in_gymnasium(policy_path: str, gym_id: str, seed: int, episodes: int) -> list[float]:
+    """The returns of ``episodes`` episodes of seed ``seed``'s exported policy in ``gymnasium.make(gym_id)``
+    (episode i reset with seed i; the policy's [-1, 1] actions mapped to the env's action bounds)."""
+    import gymnasium
+    import numpy as np
+
+    from envs.gym_mujoco import without_the_settotalmass_warning
+    from metapg_jax.policy import load_policy
+
+    act = load_policy(policy_path, seed=seed)
+    with without_the_settotalmass_warning():
+        env = gymnasium.make(gym_id)
+    low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
+    returns = []
+    try:
+        for episode in range(episodes):
+            obs, _ = env.reset(seed=episode)
+            total, done = 0.0, False
+            while not done:
+                action = low + (np.asarray(act(obs), np.float64) + 1.0) * 0.5 * (high - low)
+                obs, reward, terminated, truncated, _ = env.step(action.astype(env.action_space.dtype))
+                total += float(reward)
+                done = terminated or truncated
+            returns.append(total)
+    finally:
+        env.close()
+    return returns
+
+
+def replay_report(policy_path: str, cfg, run_dir: str, chunks_done: int, episodes: int, command: list[str]) -> dict:
+    """Per seed: the gymnasium replay's returns (``replay_in_gymnasium``) beside the run's in-training evaluation
+    after the same chunk, with the provenance of the run and of the replay."""
+    import datetime
+
+    import numpy as np
+
+    from envs import get_spec
+    from metapg_jax import reporting
+
+    gym_id = get_spec(cfg.env.name).gym_id
+    rows = [r for r in reporting.read_jsonl(os.path.join(run_dir, "metrics.jsonl")) if r["chunk"] == chunks_done - 1]
+    training = {int(r["seed"]): float(r["eval_return"]) for r in rows}
+    with open(os.path.join(run_dir, "config.json")) as f:
+        stored = json.load(f)
+    seeds = []
+    for seed in sorted(training):
+        returns = replay_in_gymnasium(policy_path, gym_id, seed, episodes)
+        seeds.append({"seed": seed, "replay_returns": returns, "replay_mean": float(np.mean(returns)),
+                      "training_eval": training[seed],
+                      "relative_difference": float((np.mean(returns) - training[seed]) / abs(training[seed]))})
+    return {"gym_id": gym_id, "episodes": episodes, "chunks_done": chunks_done, "command": command,
+            "run": {k: stored.get(k) for k in ("run_args", "commit", "dirty")} | {"physics": cfg.env.physics},
+            "training_eval_episodes": cfg.run.eval_episodes,
+            "replayed": {"date": datetime.date.today().isoformat(), **reporting.provenance()}, "seeds": seeds}
 
 
 if __name__ == "__main__":

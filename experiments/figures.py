@@ -97,18 +97,15 @@ def write_teacher_designs(results: dict, out_dir: str, build: dict, preset: str,
 
 # ---------------------------------------------------------------------------------------------- visitation
 
-def visitation_groups(teacher_visits: dict, ddpg_visits: dict) -> dict:
-    """{(row, col): states (n, obs)} for the 2x3 figure: rows early/late, cols teacher/student/DDPG.
-
-    Takes the valid rows of each seed (``min(count, K)``; the ``*_late`` ring is
-    in arbitrary order, which does not matter for a density) and pools the seeds.
-    """
-    def valid(v: dict, prefix: str, when: str) -> np.ndarray:
+def visitation_per_seed(teacher_visits: dict, ddpg_visits: dict) -> dict:
+    """{(when, who): [states (n_i, obs) of seed i]} for when in early/late and who in teacher/student/ddpg: the
+    valid rows of each seed (``min(count, K)``; the ``*_late`` ring is in arbitrary order, which does not matter
+    for a density or a coverage measure)."""
+    def valid(v: dict, prefix: str, when: str) -> list[np.ndarray]:
         arr = np.asarray(v[f"{prefix}_{when}"], np.float64)      # (seeds, K, obs)
         counts = np.asarray(v[f"{prefix}_count"]).reshape(-1)
         k = arr.shape[1]
-        parts = [arr[i, :min(int(counts[i]), k)] for i in range(arr.shape[0])]
-        return np.concatenate(parts, 0) if parts else np.zeros((0, arr.shape[-1]))
+        return [arr[i, :min(int(counts[i]), k)] for i in range(arr.shape[0])]
 
     groups = {}
     for when in ("early", "late"):
@@ -116,6 +113,13 @@ def visitation_groups(teacher_visits: dict, ddpg_visits: dict) -> dict:
         groups[(when, "student")] = valid(teacher_visits, "student", when)
         groups[(when, "ddpg")] = valid(ddpg_visits, "explore", when)
     return groups
+
+
+def visitation_groups(teacher_visits: dict, ddpg_visits: dict) -> dict:
+    """{(row, col): states (n, obs)} for the 2x3 figure: rows early/late, cols teacher/student/DDPG; the seeds
+    of ``visitation_per_seed`` pooled."""
+    return {k: np.concatenate(parts, 0) if parts else np.zeros((0, np.asarray(teacher_visits["explore_early"]).shape[-1]))
+            for k, parts in visitation_per_seed(teacher_visits, ddpg_visits).items()}
 
 
 def subsample(x: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:

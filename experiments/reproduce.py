@@ -204,8 +204,11 @@ def requested_config(args: argparse.Namespace, task: str, method: str, options: 
     return run_lib.config_from_run_args(run_lib.run_args(parsed))
 
 
-def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, started: dict) -> None:
-    """``reproduce.json`` in the cell: commit, machine, command, status and accumulated wall time.
+def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, started: dict,
+                       diff: str = "") -> None:
+    """``reproduce.json`` in the cell: commit, machine, command, status and accumulated wall time; a call
+    started from a tree with uncommitted code changes stores them (``diff``, taken when it started) beside the
+    record as ``uncommitted-<call>.diff``, named in its call entry, and archived with the cell.
 
     ``started`` is ``reporting.provenance()`` taken when the call began (the code that ran, even if
     the checkout changed while it ran); every call (a resume is one) keeps its own commit, and the
@@ -215,9 +218,14 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
     from metapg_jax import reporting
 
     path = os.path.join(out, "reproduce.json")
-    calls = read_json(path).get("calls", []) + [{
-        "argv": argv, "status": status, "wall_seconds": round(seconds, 2), "commit": started["commit"],
-        "dirty": started["dirty"], "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}]
+    calls = read_json(path).get("calls", [])
+    call = {"argv": argv, "status": status, "wall_seconds": round(seconds, 2), "commit": started["commit"],
+            "dirty": started["dirty"], "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    if started["dirty"]:
+        call["diff"] = f"uncommitted-{len(calls) + 1}.diff"
+        with open(os.path.join(out, call["diff"]), "w") as f:
+            f.write(diff if diff.endswith("\n") or not diff else diff + "\n")
+    calls = calls + [call]
     # A call killed before it wrote its record (session end, SIGKILL) still started the cell: config.json's
     # commit wins; the first recorded call's is the fallback for a cell without one.
     cfg = read_json(os.path.join(out, "config.json"))
@@ -288,12 +296,13 @@ def run_cell(args: argparse.Namespace, task: str, method: str, plan: dict) -> in
 
     out, argv = plan["out"], plan["argv"]
     started, t0 = reporting.provenance(), time.perf_counter()
+    diff = reporting.uncommitted_diff() if started["dirty"] else ""
     try:
         code = run_lib.main(argv)
     except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed (e.g. while compiling)
         code = 130
     if os.path.isdir(out):
-        _write_cell_record(out, argv, code, time.perf_counter() - t0, started)
+        _write_cell_record(out, argv, code, time.perf_counter() - t0, started, diff)
         archive_cell(out, plan["archived"], method, baseline_for(args.preset, args.student))
     return code
 

@@ -86,7 +86,7 @@ VARIANTS: dict[str, Variant] = {
         _one_step),
     "variance-teacher": Variant(
         "variance teacher", "`--teacher=variance`: the teacher's mean is the student's action, only its "
-                            "log-std is learned (the paper's design (ii))",
+                            "log-std is learned (the paper's design (i); the independent teacher is its design (ii))",
         "The independent teacher starts as a network of its own and barely moves at the paper's learning rate, so "
         "D0 holds actions far from the student's (RMS distance ~0.8-1.0 of the action range on Hopper): data about "
         "a policy the student is not. Exploring around the student's action makes D0 informative for it.",
@@ -272,27 +272,47 @@ def task_rows(results_dir: str, task: str, upto: int) -> tuple[list[dict], list[
     return ablation.compare(runs, upto), missing
 
 
-def best_baseline(rows: list[dict]) -> dict | None:
-    found = [r for r in rows if r["name"] in BASELINES]
-    return max(found, key=lambda r: r["mean"]) if found else None
+def verdicts(by_task: dict, anchors: dict | None = None) -> dict:
+    """The screen's corrected verdicts (``stats.judge_family``), one family per reference, over every task:
+    each variant against the paper's teacher, and each teacher variant (not the noise baselines) against each
+    noise baseline. ``{reference: {(task, variant): judged}}``; margins: ``stats.EQUIVALENCE_MARGIN`` of the
+    task's anchors' range (none without anchors)."""
+    out = {}
+    for ref in (CONTROL, *BASELINES):
+        keys, pairs = [], []
+        for task, (rows, _) in by_task.items():
+            found = {r["name"]: r for r in rows}
+            if ref not in found:
+                continue
+            low_high = (anchors or {}).get(task)
+            margin = None if low_high is None else stats.EQUIVALENCE_MARGIN * (low_high[1] - low_high[0])
+            for r in rows:
+                if r["name"] == ref or (ref in BASELINES and r["name"] in BASELINES):
+                    continue
+                keys.append((task, r["name"]))
+                pairs.append((r["finals"], found[ref]["finals"], margin))
+        out[ref] = dict(zip(keys, stats.judge_family(pairs)))
+    return out
 
 
-def verdict(r: dict, ref: dict, fmt=lambda p: p) -> tuple:
-    """(``fmt`` of the Welch p of ``r`` vs ``ref``, 'better'/'worse' at p < 0.05, else 'n.s.')."""
-    _, p, word = stats.verdict(r["finals"], ref["finals"])
-    return fmt(p), word
+def _said(judged: dict | None) -> str:
+    return "–" if judged is None else f"{judged['verdict']} ({stats.fmt_p(judged['p'])}; {stats.fmt_p(judged['p_holm'])})"
 
 
-def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "mujoco") -> str:
-    """The report; ``by_task``: task -> ``task_rows``' (rows, missing)."""
+def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "mujoco",
+             judged: dict | None = None) -> str:
+    """The report; ``by_task``: task -> ``task_rows``' (rows, missing); ``judged``: ``verdicts``' result."""
     tasks = list(by_task)
+    judged = verdicts(by_task) if judged is None else judged
     lines = [f"# Screen of teacher variants ({', '.join(TASK_NAMES[t] for t in tasks)}, {upto:,} env steps, "
              f"{seeds} seeds)", "",
              "Algorithm 1's knobs changed one at a time from the paper preset (`python -m experiments.screen`, "
              "MuJoCo's C engine, base seed 0), next to the paper's teacher and both DDPG noise baselines on the "
              "same seeds and budget. Final return of a seed = mean of its last 10% (at least 1) evaluations; "
-             "mean ± std over seeds (ddof=1); 95% CI: Student t; p: two-sided Welch t-test; 'better'/'worse': "
-             "p < 0.05. The best noise baseline is the one of the two with the higher mean on that task. Per task: "
+             "mean ± std over seeds (ddof=1); 95% CI: Student t. Each verdict column is one family over both tasks "
+             "(every variant against the paper's teacher; every teacher variant against each noise baseline), "
+             "written 'verdict (raw p; Holm p)': " + stats.VERDICT_DEFINITION + ". Aggregate scores over the tasks: "
+             "`aggregate.md`. Per task: "
              "`<task>/README.md` (what changed, from the stored configs; teacher log-std), `<task>/per_seed.csv`, "
              "`<task>/curves.png`; cells: `cells/<task>/<variant>`.", "",
              "## Variants and the hypotheses behind them", "",
@@ -308,15 +328,14 @@ def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "
             lines.append(f"The paper teacher's cell is not finished: nothing is compared ({len(VARIANTS)} cells "
                          "not run or not finished).")
             continue
-        control, base = rows[0], best_baseline(rows)
-        lines += [f"| variant | final (mean ± std) | 95% CI | vs paper teacher (p) | vs {VARIANTS[base['name']].label if base else 'best noise baseline'} (p) "
-                  "| teacher log-std | seeds at floor |", "|---|---|---|---|---|---|---|"]
+        lines += ["| variant | final (mean ± std) | 95% CI | vs paper teacher | "
+                  + " | ".join(f"vs {VARIANTS[b].label}" for b in BASELINES)
+                  + " | teacher log-std | seeds at floor |", "|---|---|---|---|" + "---|" * len(BASELINES) + "---|---|"]
         for r in rows:
-            vs_c = "–" if r["control"] else "{1} ({0})".format(*verdict(r, control, stats.fmt_p))
-            vs_b = "–" if base is None or r is base else "{1} ({0})".format(*verdict(r, base, stats.fmt_p))
+            said = [_said(judged[ref].get((task, r["name"]))) for ref in (CONTROL, *BASELINES)]
             t = r["teacher"]
             lines.append(f"| {VARIANTS[r['name']].label} | {stats.fmt(r['mean'])} ± {stats.fmt(r['std'])} | "
-                         f"± {stats.fmt(r['ci_half'])} | {vs_c} | {vs_b} | "
+                         f"± {stats.fmt(r['ci_half'])} | {' | '.join(said)} | "
                          f"{'–' if t is None else stats.fmt(t['mean'], 2)} | "
                          f"{'–' if t is None else str(t['seeds_at_floor']) + ' of ' + str(len(t['per_seed']))} |")
         why = {n: same_as(task, n, physics) for n in missing}
@@ -340,26 +359,50 @@ def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "
     return "\n".join(lines) + "\n"
 
 
-def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, physics: str = "mujoco") -> list[str]:
+def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, physics: str = "mujoco",
+                 anchors_path: str | None = None) -> list[str]:
+    """README.md (the tables with corrected verdicts), screen.json, the aggregate over the tasks (aggregate.md /
+    .json, performance_profiles.png: the variants finished on every task, normalised with ``anchors_path``,
+    default results/normalisation.json) and per task ``experiments.ablation``'s report."""
+    from experiments import aggregate, normalisation
     from metapg_jax import reporting
 
+    anchors_path = normalisation.DEFAULT_OUT if anchors_path is None else anchors_path
+    anchors = normalisation.load(anchors_path) if os.path.exists(anchors_path) else None
     build = cells.build_info(results_dir)
     files, summary, by_task = [], {"upto": upto, "seeds": seeds, "build": build, "tasks": {}}, {}
     for task in tasks:
         rows, missing = by_task[task] = task_rows(results_dir, task, upto)
         if rows:
             files += ablation.write_report(rows, task, upto, os.path.join(results_dir, task), build)
+    judged = verdicts(by_task, anchors)
+    for task, (rows, missing) in by_task.items():
         summary["tasks"][task] = {
             "finished": {r["name"]: {"finals": [float(x) for x in r["finals"]], "mean": r["mean"], "std": r["std"],
                                      "ci_half": r["ci_half"], "commit": r["commit"],
-                                     "teacher_log_std": None if r["teacher"] is None else r["teacher"]["mean"]}
+                                     "teacher_log_std": None if r["teacher"] is None else r["teacher"]["mean"],
+                                     "verdicts": {ref: judged[ref][(task, r["name"])] for ref in judged
+                                                  if (task, r["name"]) in judged[ref]}}
                          for r in rows},
             "not_finished": missing}
+    summary["verdicts_definition"] = stats.VERDICT_DEFINITION
     os.makedirs(results_dir, exist_ok=True)
     md = os.path.join(results_dir, "README.md")
     with open(md, "w") as f:
-        f.write(markdown(by_task, upto, seeds, build, physics))
+        f.write(markdown(by_task, upto, seeds, build, physics, judged))
     reporting.write_json_atomic(os.path.join(results_dir, "screen.json"), summary)
+    everywhere = [n for n in VARIANTS if all(n in {r["name"] for r in rows} for rows, _ in by_task.values())]
+    grid = {"rows": [{"task": task, "methods": {r["name"]: {"status": "done", "per_seed": list(r["finals"])}
+                                                for r in rows if r["name"] in everywhere}}
+                     for task, (rows, _) in by_task.items()]}
+    scored = aggregate.grid_scores(grid, anchors) if anchors is not None and everywhere else None
+    if scored and scored[0]:
+        rep = aggregate.report(grid, anchors, scored)
+        rep["variants_not_on_every_task"] = [n for n in VARIANTS if n not in everywhere]
+        files += aggregate.write(rep, scored, results_dir, "screen", {
+            "date": build["built"][:10], "commit": build["commit"], "dirty": build["dirty"],
+            "grid": "screen.json", "anchors": aggregate.repo_path(anchors_path)},
+            labels={n: v.label for n, v in VARIANTS.items()})
     return [md, os.path.join(results_dir, "screen.json")] + files
 
 

@@ -324,3 +324,101 @@ def corrected_verdict(diff: float, p_holm: float, p_tost_holm: float, alpha: flo
     if math.isfinite(p_tost_holm) and p_tost_holm < alpha:
         return "equivalent"
     return "inconclusive"
+
+
+EQUIVALENCE_MARGIN = 0.05  # of a task's normalised range (reference − random return): the declared margin
+VERDICT_DEFINITION = (
+    "verdicts: two-sided Welch t-test of the seeds' final returns, Holm-corrected within its family (every "
+    "comparison of the table against one baseline); 'better' / 'worse' where the corrected p < 0.05; "
+    "'equivalent' where the two one-sided Welch tests (TOST) of a difference within ±{margin:.0%} of the "
+    "task's normalised range (reference − random policy's return, results/normalisation.json), Holm-corrected "
+    "in the same family, give p < 0.05; otherwise 'inconclusive' (read the CI: with 8 seeds a test has 80% "
+    "power only for differences of about 1.5 standard deviations)").format(margin=EQUIVALENCE_MARGIN)
+
+
+def judge_family(pairs: Sequence[tuple[Sequence[float], Sequence[float], float | None]]) -> list[dict]:
+    """The corrected verdicts of one family of comparisons: ``pairs`` of (a's per-seed finals, b's, the
+    equivalence margin in return units or None where the task has no anchors). Per pair, in order: the
+    difference of the means a − b and its 95% Welch CI, Welch t and raw p, the Holm-corrected p, the TOST p of
+    the margin (raw and Holm-corrected over the family's TOSTs) and ``corrected_verdict``'s word."""
+    raw = [welch_test(a, b) for a, b, _ in pairs]
+    equiv = [tost(a, b, margin) if margin is not None else math.nan for a, b, margin in pairs]
+    p_holm, equiv_holm = holm([p for _, p in raw]), holm(equiv)
+    out = []
+    for (a, b, margin), (t, p), ph, pe, peh in zip(pairs, raw, p_holm, equiv, equiv_holm):
+        diff, half = welch_difference(a, b)
+        out.append({"difference": diff, "ci95": [diff - half, diff + half] if math.isfinite(half) else None,
+                    "t": t, "p": p, "p_holm": float(ph), "margin": margin, "p_equivalence": pe,
+                    "p_equivalence_holm": float(peh), "verdict": corrected_verdict(diff, float(ph), float(peh))})
+    return out
+
+
+# -- state coverage of the visited states (the behaviour artefacts' numbers behind Figure 4) -------------------
+
+COVERAGE_CELLS = 20   # a 20 x 20 grid over the task's 2-D PCA projection
+COVERAGE_K = 5        # the k of the k-NN spread
+COVERAGE_DEFINITION = (
+    "per task, every stored state (teacher, student, DDPG; early and late; every seed; the same number of states "
+    "per seed and group, evenly thinned) is standardised with the pooled mean and std per dimension; occupied "
+    "cells: the fraction of a {cells} x {cells} grid over a 2-D PCA projection fitted once per task on the pooled "
+    "states (its box: the pooled 1st-99th percentiles per axis, states outside counted in the edge cells) that "
+    "a seed's states fall in; {k}-NN spread: a seed's mean distance from each state to its {k}th nearest "
+    "neighbour among its own states; distance to the student: a seed's mean distance from each state to the "
+    "nearest state of the student's (Meta's D1) of the same seed index and phase (for the student itself: to its "
+    "nearest other state). Mean over seeds with a 95% percentile bootstrap over seeds ({reps:,} replicates, "
+    "seed {seed})").format(cells=COVERAGE_CELLS, k=COVERAGE_K, reps=BOOTSTRAP_REPS, seed=BOOTSTRAP_SEED)
+
+
+def occupied_fraction(xy: np.ndarray, low: np.ndarray, high: np.ndarray, cells: int = COVERAGE_CELLS) -> float:
+    """The fraction of a ``cells`` x ``cells`` grid over the box [low, high] that the 2-D points ``xy`` occupy
+    (points outside the box count in the edge cells)."""
+    xy = np.asarray(xy, np.float64)
+    idx = np.clip(np.floor((xy - low) / np.where(high > low, high - low, 1.0) * cells), 0, cells - 1).astype(int)
+    return float(np.unique(idx[:, 0] * cells + idx[:, 1]).size / cells ** 2)
+
+
+def knn_distance(x: np.ndarray, k: int = COVERAGE_K) -> float:
+    """The mean distance from each row of ``x`` to its ``k``-th nearest other row."""
+    from scipy.spatial import cKDTree
+
+    x = np.asarray(x, np.float64)
+    if x.shape[0] <= k:
+        raise ValueError(f"{x.shape[0]} states: a {k}-NN distance needs more than {k}")
+    dist, _ = cKDTree(x).query(x, k=k + 1)  # the first neighbour is the state itself
+    return float(dist[:, k].mean())
+
+
+def nearest_distance(x: np.ndarray, y: np.ndarray) -> float:
+    """The mean distance from each row of ``x`` to the nearest row of ``y``."""
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(np.asarray(y, np.float64)).query(np.asarray(x, np.float64), k=1)
+    return float(dist.mean())
+
+
+def bootstrap_mean(values: Sequence[float], level: float = 0.95, reps: int = BOOTSTRAP_REPS,
+                   seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
+    """(mean, lo, hi): the mean of ``values`` (one per seed) and its percentile bootstrap interval over them
+    (seeded: the same values give the same interval); for paired differences, pass the per-seed differences."""
+    x = np.asarray(values, np.float64)
+    if x.size < 2:
+        return (float(x.mean()) if x.size else math.nan), math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    means = x[rng.integers(0, x.size, (reps, x.size))].mean(1)
+    lo, hi = np.percentile(means, [50 * (1 - level), 50 * (1 + level)])
+    return float(x.mean()), float(lo), float(hi)
+
+
+def bootstrap_difference(a: Sequence[float], b: Sequence[float], level: float = 0.95, reps: int = BOOTSTRAP_REPS,
+                         seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
+    """(mean(a) − mean(b), lo, hi): the difference of two independent groups' means (one value per seed) and its
+    percentile bootstrap interval, each group's seeds resampled on their own (seeded)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    diff = float(a.mean() - b.mean())
+    if a.size < 2 or b.size < 2:
+        return diff, math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    reps_a = a[rng.integers(0, a.size, (reps, a.size))].mean(1)
+    reps_b = b[rng.integers(0, b.size, (reps, b.size))].mean(1)
+    lo, hi = np.percentile(reps_a - reps_b, [50 * (1 - level), 50 * (1 + level)])
+    return diff, float(lo), float(hi)

@@ -19,9 +19,9 @@ import numpy as np
 from experiments.cells import BEHAVIOUR_METRICS, RunResult, cell_provenance
 from experiments.grid import (BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for, grid_label, noise_methods,
                              STUDENT_NAMES)
-from experiments.stats import (FINAL_DEFINITION, final_returns, first_step_reaching, fmt, fmt_p, mean_std,
-                               num_final_evaluations, stats_definition, t_interval, verdict, welch_difference,
-                               welch_test)
+from experiments.stats import (EQUIVALENCE_MARGIN, FINAL_DEFINITION, VERDICT_DEFINITION, final_returns,
+                               first_step_reaching, fmt, fmt_p, judge_family, mean_std, num_final_evaluations,
+                               stats_definition, t_interval, welch_test)
 
 # The paper's Table 2 (Xu et al., 2018): final return mean ± std, Meta vs DDPG; 3 seeds, gym v1 tasks.
 PAPER_TABLE2 = {
@@ -79,26 +79,69 @@ def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str], bas
                 row["welch"] = {"t": t, "p": p, "difference": a["mean"] - b["mean"]}
             else:
                 row["welch_skipped"] = "budgets differ"
-        row["vs_best_noise"] = _vs_best_noise(row["methods"], methods)
         rows.append(row)
     return rows
 
 
-def _vs_best_noise(cells: dict, methods: Sequence[str]) -> dict | None:
-    """Meta (independent) against the noise baseline with the higher mean final return among the finished
-    ones of the same budget: difference, its 95% Welch CI, Welch t and p, and 'better'/'worse' at p < 0.05
-    (else 'n.s.'); None when Meta or every noise baseline is unfinished."""
-    a = cells.get(META, {})
-    if a.get("status") != "done":
-        return None
-    found = [m for m in noise_methods(methods) if cells[m].get("status") == "done" and cells[m]["budget"] == a["budget"]]
-    if not found:
-        return None
-    best = max(found, key=lambda m: cells[m]["mean"])
-    diff, half = welch_difference(a["per_seed"], cells[best]["per_seed"])
-    t, p, word = verdict(a["per_seed"], cells[best]["per_seed"])
-    return {"method": best, "difference": diff, "ci95": [diff - half, diff + half] if math.isfinite(half) else None,
-            "t": t, "p": p, "verdict": word}
+def verdict_families(rows: list[dict], methods: Sequence[str], baseline: str,
+                     anchors: dict[str, tuple[float, float]] | None = None) -> list[dict]:
+    """The grid's corrected verdicts (``stats.judge_family``), one family per noise baseline: the grid's own
+    ``baseline`` first (fixed in advance by the grid, ``experiments.grid.baseline_for``), then every other noise
+    baseline of ``methods``, so that no baseline is picked on the seeds it is judged on. A family holds every
+    teacher (a method that does not explore with noise; every other method in a grid without one) against
+    that baseline on every task where both cells finished at the same budget (cells of different budgets are
+    listed as skipped). ``anchors`` (task -> (random, reference) returns) set each task's equivalence margin,
+    ``EQUIVALENCE_MARGIN`` of the range; a task without anchors is never judged equivalent."""
+    noise = noise_methods(methods)
+    teachers = [m for m in methods if m not in noise]
+    families = []
+    for base in [baseline] + [m for m in noise if m != baseline]:
+        compared, pairs, skipped = [], [], []
+        for row in rows:
+            b = row["methods"].get(base, {})
+            for m in (x for x in (teachers or methods) if x != base):
+                a = row["methods"].get(m, {})
+                if a.get("status") != "done" or b.get("status") != "done":
+                    continue
+                if a["budget"] != b["budget"]:  # never a test between cells of different budgets (mid-extension)
+                    skipped.append({"task": row["task"], "method": m, "why": "budgets differ"})
+                    continue
+                low_high = (anchors or {}).get(row["task"])
+                margin = None if low_high is None else EQUIVALENCE_MARGIN * (low_high[1] - low_high[0])
+                compared.append({"task": row["task"], "method": m})
+                pairs.append((a["per_seed"], b["per_seed"], margin))
+        families.append({"baseline": base, "fixed_in_advance": base == baseline, "skipped": skipped,
+                         "comparisons": [{**c, **j} for c, j in zip(compared, judge_family(pairs))]})
+    return families
+
+
+def verdicts_markdown(families: list[dict], rows: list[dict] | None = None) -> list[str]:
+    """The verdict tables of ``verdict_families``, one per baseline."""
+    name = lambda m: METHOD_NAMES.get(m, m)
+    task_name = lambda t: TASK_NAMES.get(t, t)
+    md = ["## Verdicts against each noise baseline (corrected for the number of comparisons)", "",
+          f"- {VERDICT_DEFINITION}.",
+          "- a − b: difference of the mean final returns, with its 95% Welch CI (t(0.975, Welch-Satterthwaite "
+          "df)); margin: the equivalence margin in return units; p: raw Welch p; Holm p: corrected over the "
+          "family; TOST p: the equivalence test's p, Holm-corrected over the family."]
+    for fam in families:
+        n = len(fam["comparisons"])
+        md += ["", f"### Against {name(fam['baseline'])}"
+               + (" (the grid's baseline, fixed in advance)" if fam["fixed_in_advance"] else "")
+               + f": a family of {n} comparison{'s' if n != 1 else ''}", ""]
+        if not n:
+            md.append("No teacher and this baseline both finished on a task at the same budget: nothing is compared.")
+        else:
+            md += ["| task | method | a − b | 95% CI | margin | p | Holm p | TOST p (Holm) | verdict |",
+                   "|---|---|---|---|---|---|---|---|---|"]
+            for c in fam["comparisons"]:
+                ci = "n/a" if c["ci95"] is None else f"[{fmt(c['ci95'][0])}, {fmt(c['ci95'][1])}]"
+                md.append(f"| {task_name(c['task'])} | {name(c['method'])} | {fmt(c['difference'])} | {ci} | "
+                          f"{'n/a' if c['margin'] is None else '±' + fmt(c['margin'])} | {fmt_p(c['p'])} | "
+                          f"{fmt_p(c['p_holm'])} | {fmt_p(c['p_equivalence_holm'])} | {c['verdict']} |")
+        for s in fam["skipped"]:
+            md += ["", f"{task_name(s['task'])}, {name(s['method'])}: not compared ({s['why']})."]
+    return md
 
 
 def _cell_text(cell: dict) -> str:
@@ -149,11 +192,14 @@ def engines_text(results: Iterable[RunResult]) -> str:
 
 
 def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str,
-                 build_commit: str | None = None, engines: str = "MJX", student: str = "ddpg") -> list[str]:
-    """table2.md, table2.json and table2_per_seed.csv from ``table2_rows``; returns the paths."""
+                 build_commit: str | None = None, engines: str = "MJX", student: str = "ddpg",
+                 families: list[dict] | None = None) -> list[str]:
+    """table2.md, table2.json and table2_per_seed.csv from ``table2_rows`` and ``verdict_families`` (computed
+    without anchors when not given); returns the paths."""
     os.makedirs(out_dir, exist_ok=True)
     names = [METHOD_NAMES.get(m, m) for m in methods]
     baseline = baseline_for(preset, student)
+    families = verdict_families(rows, methods, baseline) if families is None else families
     protocol = ("" if preset == "paper" and student == "ddpg" else
                 f" The paper's numbers are for its own protocol ({'' if student == 'ddpg' else 'DDPG with '}the "
                 f"paper preset's networks, noise and budgets), not for the {grid_label(preset, student)}: they are "
@@ -177,33 +223,17 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
         seeds = _joined({m: c["n"] for m, c in done.items()})
         md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " + " | ".join(cells) +
                   f" | {pm} | {pd} | {budget} | {seeds} |")
-    md += ["", "## 95% confidence intervals and Welch's t-test", "",
-           "| task | " + " | ".join(names) + f" | Meta (ind.) − {METHOD_NAMES.get(baseline, baseline)} | Welch t | p |",
-           "|---|" + "---|" * len(names) + "---|---|---|"]
+    md += ["", "## 95% confidence intervals", "", "| task | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
     for row in rows:
-        w = row["welch"]
-        na = f"n/a ({row['welch_skipped']})" if row.get("welch_skipped") else "n/a"
-        tail = (f"{fmt(w['difference'])} | {fmt(w['t'], 2)} | {fmt_p(w['p'])}" if w else f"{na} | n/a | n/a")
         md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
-                  " | ".join(_ci_text(row["methods"][m]) for m in methods) + f" | {tail} |")
-    md += ["", "## Meta (independent) against the better noise baseline", "",
-           "Per task, the noise baseline with the higher mean final return (of those finished at Meta's budget); "
-           "Meta − it with the 95% Welch CI of the difference (t(0.975, Welch-Satterthwaite df)); 'better' or "
-           "'worse': Welch p < 0.05, else 'n.s.'.", "",
-           "| task | better noise baseline | Meta (ind.) − it | 95% CI | p | verdict |", "|---|---|---|---|---|---|"]
-    for row in rows:
-        v = row["vs_best_noise"]
-        if v is None:
-            md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | n/a | n/a | n/a | n/a | not compared (a cell not run or not finished) |")
-            continue
-        ci = "n/a" if v["ci95"] is None else f"[{fmt(v['ci95'][0])}, {fmt(v['ci95'][1])}]"
-        md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | {METHOD_NAMES.get(v['method'], v['method'])} | "
-                  f"{fmt(v['difference'])} | {ci} | {fmt_p(v['p'])} | {v['verdict']} |")
+                  " | ".join(_ci_text(row["methods"][m]) for m in methods) + " |")
+    md += [""] + verdicts_markdown(families)
     md.append(footer)
     paths = [os.path.join(out_dir, n) for n in ("table2.md", "table2.json", "table2_per_seed.csv")]
     _write_md_and_json(paths[0], md, paths[1], preset, student,
                        {"baseline": baseline, "final_definition": FINAL_DEFINITION,
-                        "statistics": stats_definition(baseline), "paper_seeds": PAPER_SEEDS, "rows": rows})
+                        "statistics": stats_definition(baseline), "verdicts_definition": VERDICT_DEFINITION,
+                        "paper_seeds": PAPER_SEEDS, "rows": rows, "verdicts": families})
     with open(paths[2], "w", newline="") as f:
         w = csv.writer(f)
         # seed_index i is the run's seed i: PRNG key fold_in(PRNGKey(base_seed), i).
@@ -439,10 +469,124 @@ def write_behaviour(rows: list[dict], out_dir: str, footer: str, preset: str, bu
     return paths
 
 
+# ---------------------------------------------------------------------------------------------- coverage
+
+COVERAGE_GROUPS = (("teacher", "teacher (Meta's D0)"), ("student", "student (Meta's D1)"), ("ddpg", "noise baseline"))
+
+
+def coverage_rows(results: dict, tasks: Sequence[str], baseline: str = BASELINE) -> dict:
+    """State coverage as numbers (``stats.COVERAGE_DEFINITION``) for every task whose Meta (independent) and
+    ``baseline`` cells stored ``visits.npz`` (the states of Figure 4): per group (teacher, student, the
+    baseline; early and late) the occupied cells, the k-NN spread and the distance to the student's states,
+    each a mean over seeds with its bootstrap interval; and per task and phase the comparisons Figure 4 is
+    read for: teacher − baseline (occupied cells, spread; independent seeds) and the teacher's distance to
+    the student's states − the student's own (paired by seed: the same runs). ``{"rows": [...],
+    "comparisons": [...]}``."""
+    from sklearn.decomposition import PCA
+
+    from experiments import figures
+    from experiments.cells import thin_visits
+    from experiments.stats import (COVERAGE_K, bootstrap_difference, bootstrap_mean, knn_distance,
+                                   nearest_distance, occupied_fraction)
+
+    out = {"rows": [], "comparisons": []}
+    for task in tasks:
+        a, b = results.get((task, META)), results.get((task, baseline))
+        paths = [None if r is None else os.path.join(r.path, "visits.npz") for r in (a, b)]
+        if None in paths or not all(os.path.exists(p) for p in paths):
+            continue
+        with np.load(paths[0]) as va, np.load(paths[1]) as vb:
+            per_seed = figures.visitation_per_seed(thin_visits(dict(va)), thin_visits(dict(vb)))
+        per_seed = {k: [x for x in v if len(x)] for k, v in per_seed.items()}
+        sizes = [len(x) for v in per_seed.values() for x in v]
+        if not sizes or min(sizes) <= COVERAGE_K or not per_seed[("late", "student")]:
+            continue
+        n, rng = min(sizes), np.random.default_rng(0)
+        per_seed = {k: [figures.subsample(x, n, rng) for x in v] for k, v in per_seed.items()}
+        pooled = np.concatenate([x for v in per_seed.values() for x in v], 0)
+        mu, sd = pooled.mean(0), pooled.std(0)
+        sd = np.where(sd > 1e-8, sd, 1.0)
+        z = {k: [(x - mu) / sd for x in v] for k, v in per_seed.items()}
+        pca = PCA(n_components=2, random_state=0).fit((pooled - mu) / sd)
+        proj = pca.transform((pooled - mu) / sd)
+        low, high = np.percentile(proj, 1, axis=0), np.percentile(proj, 99, axis=0)
+        values = {}
+        for (when, who), xs in z.items():
+            if not xs:
+                continue
+            students = z[(when, "student")]
+            values[(when, who)] = {
+                "occupied": [occupied_fraction(pca.transform(x), low, high) for x in xs],
+                "spread": [knn_distance(x) for x in xs],
+                "to_student": ([knn_distance(x, 1) for x in xs] if who == "student" else
+                               [nearest_distance(x, students[i % len(students)]) for i, x in enumerate(xs)])}
+            out["rows"].append({"task": task, "phase": when, "group": who, "seeds": len(xs), "states_per_seed": n,
+                                **{m: dict(zip(("mean", "lo", "hi"), bootstrap_mean(v)))
+                                   for m, v in values[(when, who)].items()}})
+        for when in ("early", "late"):
+            t, d, st = values.get((when, "teacher")), values.get((when, "ddpg")), values.get((when, "student"))
+            if t is None:
+                continue
+            comps = []
+            if d is not None:
+                comps += [("occupied", "teacher − noise baseline", bootstrap_difference(t["occupied"], d["occupied"])),
+                          ("spread", "teacher − noise baseline", bootstrap_difference(t["spread"], d["spread"]))]
+            if st is not None and len(st["to_student"]) == len(t["to_student"]):
+                paired = np.asarray(t["to_student"]) - np.asarray(st["to_student"])
+                comps.append(("to_student", "teacher − student (paired by seed)", bootstrap_mean(paired)))
+            for measure, what, (diff, lo, hi) in comps:
+                out["comparisons"].append({"task": task, "phase": when, "measure": measure, "comparison": what,
+                                           "difference": diff, "lo": lo, "hi": hi,
+                                           "reading": "higher" if lo > 0 else "lower" if hi < 0 else "no clear difference"})
+    return out
+
+
+def write_coverage(coverage: dict, out_dir: str, footer: str, preset: str, baseline: str,
+                   build_commit: str | None = None, student: str = "ddpg") -> list[str]:
+    """coverage.md and coverage.json from ``coverage_rows``; returns the paths (none when no task has both
+    visitation samples)."""
+    from experiments.stats import COVERAGE_DEFINITION
+
+    if not coverage["rows"]:
+        return []
+    paths = [os.path.join(out_dir, "coverage.md"), os.path.join(out_dir, "coverage.json")]
+    names = dict(COVERAGE_GROUPS, ddpg=METHOD_NAMES.get(baseline, baseline))
+    measures = {"occupied": "occupied cells", "spread": "5-NN spread", "to_student": "distance to the student"}
+    ci = lambda e: f"{fmt(e['mean'], 3)} [{fmt(e['lo'], 3)}, {fmt(e['hi'], 3)}]"
+    md = [f"# State coverage of the visited states ({grid_label(preset, student)})", "",
+          "The numbers behind the state-visitation figures (`visitation_<task>.png`, the paper's Figure 4): how "
+          "much of the state space each explorer's data covers and how far the teacher's states lie from the "
+          "student's, from the same stored samples (the first and the latest states each seed visited).", "",
+          f"- {COVERAGE_DEFINITION}.",
+          "- comparisons: teacher − noise baseline (independent runs: each group's seeds resampled on their own) "
+          "and the teacher's distance to the student's states − the student's own (the same runs: paired by "
+          "seed); 'higher' / 'lower' where the 95% interval excludes 0."]
+    for task in dict.fromkeys(r["task"] for r in coverage["rows"]):
+        rows = [r for r in coverage["rows"] if r["task"] == task]
+        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
+               f"{rows[0]['states_per_seed']} states per seed and group.", "",
+               "| phase | group | seeds | " + " | ".join(measures.values()) + " |", "|---|---|---|---|---|---|"]
+        for r in rows:
+            md.append(f"| {r['phase']} | {names[r['group']]} | {r['seeds']} | "
+                      + " | ".join(ci(r[m]) for m in measures) + " |")
+        comps = [c for c in coverage["comparisons"] if c["task"] == task]
+        md += ["", "| phase | measure | comparison | difference [95% CI] | reading |", "|---|---|---|---|---|"]
+        for c in comps:
+            md.append(f"| {c['phase']} | {measures[c['measure']]} | {c['comparison']} | "
+                      f"{fmt(c['difference'], 3)} [{fmt(c['lo'], 3)}, {fmt(c['hi'], 3)}] | {c['reading']} |")
+    md.append(footer)
+    _write_md_and_json(paths[0], md, paths[1], preset, student,
+                       {"baseline": baseline, "definition": COVERAGE_DEFINITION, "build_commit": build_commit,
+                        **coverage})
+    return paths
+
+
 # ---------------------------------------------------------------------------------------------- README
 
-def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequence[str], footer: str) -> str:
-    """``README.md``: what each artefact is, which cells were run, and the headline numbers."""
+def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequence[str], footer: str,
+                 families: list[dict] | None = None) -> str:
+    """``README.md``: what each artefact is, which cells were run, and the headline numbers (the final returns
+    and the corrected verdicts against the grid's baseline, ``verdict_families``' first family)."""
     preset, student = manifest["build"]["preset"], manifest["build"].get("student", "ddpg")
     baseline = METHOD_NAMES.get(baseline_for(preset, student), baseline_for(preset, student))
     cells = manifest["cells"]
@@ -457,8 +601,9 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
              f"{len(manifest['not_run'])} cells of the grid were not run.", "",
              "| file | content |", "|---|---|"]
     desc = {
-        "table2.md": "the paper's Table 2: final return mean ± std per task and method, 95% CIs, Welch p "
-                     f"(Meta (independent) vs {baseline}), budget and seeds, next to the paper's numbers",
+        "table2.md": "the paper's Table 2: final return mean ± std per task and method, 95% CIs, budget and seeds, "
+                     "next to the paper's numbers; the verdicts against each noise baseline (Holm-corrected, "
+                     "equivalence within a declared margin)",
         "table2.json": "the same, machine-readable (with per-seed final returns)",
         "table2_per_seed.csv": "per-seed final returns of every finished cell",
         "steps_to_threshold.md": "first env step at which each method's seed-mean curve reaches DDPG's best "
@@ -470,8 +615,16 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
         "behaviour.md": "what the explorer put in the buffer per cell: the exploration episodes' return and, for a "
                         "teacher, its log-std, distance to the student and meta reward, first chunk vs final window",
         "behaviour.json": "the same, machine-readable",
+        "coverage.md": "state coverage as numbers behind the visitation figures: occupied cells of a fixed 2-D grid, "
+                       "k-NN spread and distance to the student's states per group, early vs late, with bootstrap "
+                       "intervals, and the teacher's against the noise baseline's and the student's",
+        "coverage.json": "the same, machine-readable",
         "teacher_designs_idp.png": "Figure 2: independent vs variance teacher vs DDPG on InvertedDoublePendulum",
         "manifest.json": "provenance: commit, machine, and per cell config, seeds, budget, wall time",
+        "aggregate.md": "aggregate scores over the tasks (IQM, mean, optimality gap of normalised final returns) "
+                        "and the probability of improvement, with 95% stratified bootstrap intervals",
+        "aggregate.json": "the same, machine-readable, with the normalisation anchors used",
+        "performance_profiles.png": "performance profiles: the fraction of seeds above each normalised score",
     }
     for f in manifest["files"]:
         if f == "README.md":
@@ -486,19 +639,28 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
             d = desc.get(f, "")
         lines.append(f"| `{f}` | {d} |")
     lines.append("| `manifest.json` | " + desc["manifest.json"] + " |")
+    absent = manifest.get("grid_without_cells", {})
+    if absent.get("tasks") or absent.get("methods"):
+        lines += ["", "Left out of the tables (the grid has no cell stored for them): "
+                  + "; ".join(part for part in (
+                      ", ".join(TASK_NAMES.get(t, t) for t in absent.get("tasks", [])),
+                      ", ".join(METHOD_NAMES.get(m, m) for m in absent.get("methods", []))) if part) + "."]
+    if manifest.get("aggregate_not_built"):
+        lines += ["", f"No aggregate scores: {manifest['aggregate_not_built']}."]
     if "teacher_designs_idp.png" not in have:
         lines += ["", "No InvertedDoublePendulum run is stored, so `teacher_designs_idp.png` (Figure 2) is not built."]
     if not any(f.startswith("visitation_") for f in have):
         lines += ["", f"No task has both a Meta (independent) and a {baseline} run with `visits.npz`, so the "
                       "state-visitation figure is not built."]
     lines += ["", "## Final return (mean ± std over seeds; see `table2.md` for definitions and CIs)", "",
-              "| task | " + " | ".join(METHOD_NAMES.get(m, m) for m in methods) + " | Welch p |",
-              "|---|" + "---|" * len(methods) + "---|"]
+              "| task | " + " | ".join(METHOD_NAMES.get(m, m) for m in methods)
+              + f" | verdict against {baseline} (Holm p) |", "|---|" + "---|" * len(methods) + "---|"]
+    fixed = (families or verdict_families(rows, methods, baseline_for(preset, student)))[0]["comparisons"]
     for row in rows:
-        w = row["welch"]
+        said = "; ".join(f"{METHOD_NAMES.get(c['method'], c['method'])}: {c['verdict']} ({fmt_p(c['p_holm'])})"
+                         for c in fixed if c["task"] == row["task"])
         lines.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
-                     " | ".join(_cell_text(row["methods"][m]) for m in methods) +
-                     f" | {fmt_p(w['p']) if w else row.get('welch_skipped', 'n/a')} |")
+                     " | ".join(_cell_text(row["methods"][m]) for m in methods) + f" | {said or 'not compared'} |")
     lines.append(footer)
     path = os.path.join(out_dir, "README.md")
     with open(path, "w") as f:

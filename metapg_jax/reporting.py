@@ -21,22 +21,28 @@ from typing import Any, Iterable
 import numpy as np
 
 
+def _git(*args: str) -> str:
+    """A git command's output in the project's checkout ('' when git fails or is missing)."""
+    import subprocess
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    try:
+        return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+# Tracked files outside ``results/``: the code a run's provenance speaks for (``results/`` holds outputs).
+_CODE = ("--", ".", ":(exclude)results")
+
+
 def provenance() -> dict:
     """The commit (and whether the tree had changes) and the machine, recorded with every run.
 
     ``dirty``: tracked files outside ``results/`` differ from the commit. ``results/`` holds outputs (reports
     that a grid or screen rewrites between its cells), not code, so a rewritten report does not mark the
-    cells that start after it."""
+    cells that start after it. ``uncommitted_diff`` gives the changes themselves."""
     import platform
-    import subprocess
-
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-    def git(*args):
-        try:
-            return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, timeout=10).stdout.strip()
-        except (OSError, subprocess.SubprocessError):
-            return ""
 
     machine = {"platform": platform.platform(), "processor": platform.machine(),
                "cpu_count": os.cpu_count(), "python": platform.python_version()}
@@ -47,9 +53,15 @@ def provenance() -> dict:
                        jax_devices=[str(d) for d in jax.devices()])
     except Exception as err:  # noqa: BLE001 - provenance must never stop a run
         machine["jax_error"] = repr(err)
-    return {"commit": git("rev-parse", "HEAD") or "unknown",
-            "dirty": bool(git("status", "--porcelain", "--untracked-files=no", "--", ".", ":(exclude)results")),
+    return {"commit": _git("rev-parse", "HEAD") or "unknown",
+            "dirty": bool(_git("status", "--porcelain", "--untracked-files=no", *_CODE)),
             "machine": machine}
+
+
+def uncommitted_diff() -> str:
+    """The uncommitted changes that make ``provenance()`` dirty: ``git diff HEAD`` of the tracked files outside
+    ``results/`` ('' for a clean tree)."""
+    return _git("diff", "HEAD", "--no-color", *_CODE)
 
 
 def write_json_atomic(path: str, obj: Any) -> None:

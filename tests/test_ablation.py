@@ -61,6 +61,8 @@ def test_numbers_at_the_common_budget_match_hand_computation(runs):
     np.testing.assert_allclose(rows[1]["finals"], fin_v)
     assert rows[1]["mean"] == pytest.approx(fin_v.mean()) and rows[1]["std"] == pytest.approx(fin_v.std(ddof=1))
     assert rows[1]["p_vs_control"] == pytest.approx(stats.ttest_ind(fin_v, fin_c, equal_var=False).pvalue)
+    # one variant: a family of one, so the Holm p is the raw p; the verdict follows it
+    assert rows[1]["judged"]["p_holm"] == pytest.approx(rows[1]["p_vs_control"]) and "judged" not in rows[0]
     assert rows[1]["diff"] == {"meta.normalize_meta_reward": (True, False)}  # total_steps ignored
     # teacher: the same window as the final return (the 12th evaluation), not the control's later ones
     assert rows[1]["teacher"]["per_seed"] == [-2.0] * 3 and rows[1]["teacher"]["seeds_at_floor"] == 0

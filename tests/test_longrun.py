@@ -359,6 +359,25 @@ def test_exported_policy_reproduces_the_training_evaluation(reference):
     assert len(last) == 2 and all(np.isfinite(r["eval_return"]) for r in last)
 
 
+def test_export_replays_the_policies_in_gymnasium_and_stores_the_report(reference, tmp_path, capsys):
+    from experiments import export
+
+    report = tmp_path / "replay.json"
+    argv = [reference, "--out", str(tmp_path / "p.npz"), "--replay", "2", "--report", str(report)]
+    assert export.main(argv) == 0
+    got = json.load(open(report))
+    assert got["gym_id"] == "Pendulum-v1" and got["episodes"] == 2 and got["command"][3:] == argv
+    last = {r["seed"]: r["eval_return"] for r in _metrics(reference) if r["chunk"] == 2}
+    assert [s["seed"] for s in got["seeds"]] == [0, 1]
+    for s in got["seeds"]:
+        assert s["training_eval"] == pytest.approx(last[s["seed"]])
+        assert s["replay_returns"] == export.replay_in_gymnasium(str(tmp_path / "p.npz"), "Pendulum-v1", s["seed"], 2)
+        assert s["replay_mean"] == pytest.approx(np.mean(s["replay_returns"]))
+    assert got["run"]["run_args"]["seeds"] == 2 and "commit" in got["replayed"]
+    assert "seed 1: gymnasium" in capsys.readouterr().out
+    assert export.main([reference, "--report", str(report)]) == 2  # --report without --replay
+
+
 def _check_exported_policy(reference, trainer, state, key):
     from metapg_jax.evaluate import evaluate
 

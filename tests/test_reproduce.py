@@ -19,6 +19,7 @@ import pytest
 from scipy import stats
 
 from experiments import artefacts, cells, figures, grid, reproduce, tables
+from experiments import stats as stats_lib
 from experiments.stats import (final_returns, first_step_reaching, fmt, mean_std, num_final_evaluations,
                                t_interval, verdict, welch_difference, welch_test)
 from tests.helpers import fabricate_run
@@ -156,13 +157,16 @@ def test_table2_numbers_match_hand_computation(fabricated):
     t = (a.mean() - b.mean()) / math.sqrt(va + vb)
     df = (va + vb) ** 2 / (va ** 2 / (len(a) - 1) + vb ** 2 / (len(b) - 1))
     assert row["welch"]["p"] == pytest.approx(2 * stats.t.sf(abs(t), df))
-    assert row["methods"]["ddpg-normal"] == {"status": "not run"}
+    assert "ddpg-normal" not in row["methods"]  # no cell of it anywhere: left out, not "not run"
+    assert row["methods"]["meta-variance"]["status"] == "done"
     pend = next(r for r in table["rows"] if r["task"] == "pendulum")
     assert pend["methods"]["meta-independent"]["status"] == "incomplete" and pend["welch"] is None
 
     md = (fabricated["results"] / "table2.md").read_text()
     idp_line = next(line for line in md.splitlines() if line.startswith("| InvertedDoublePendulum |"))
-    assert "not run" in idp_line and "7,718 ± 277" in idp_line and "2,795 ± 1,325" in idp_line
+    assert "not run" not in idp_line and "7,718 ± 277" in idp_line and "2,795 ± 1,325" in idp_line
+    pend_line = next(line for line in md.splitlines() if line.startswith("| Pendulum |"))
+    assert pend_line.count("not run") == 2  # meta-variance and param noise: planned, shown, not run there
     assert "| 20,000 (reduced; paper: 1,500,000) |" in idp_line  # tiny budget: flagged
     # the paper budget rounded down to whole evaluation intervals is not a reduction; anything less is
     assert tables.budget_text("hopper", {"meta-independent": 990_000}) == "990,000"
@@ -170,9 +174,9 @@ def test_table2_numbers_match_hand_computation(fabricated):
     assert tables.budget_text("hopper", {"meta-independent": 450_000, "ddpg-paramnoise": 990_000}) == \
         "Meta (independent): 450,000; DDPG (param noise): 990,000 (reduced; paper: 1,000,000)"
     assert "incomplete (5,000 of 15,000 steps)" in md
-    assert "| Hopper | not run | not run | not run | not run | 205 ± 41 | 135 ± 42 | — | — |" in md
-    assert "| Reacher | not run | not run | not run | not run | -12.16 ± 1.19 | -11.67 ± 3.39 |" in md
-    assert "last max(1, floor(T/10)) evaluations" in md and "Welch" in md and "commit" in md
+    assert "| Hopper |" not in md and "| Reacher |" not in md  # tasks with no cell stored: left out
+    assert "DDPG (normal noise)" not in md
+    assert "last max(1, floor(T/10)) evaluations" in md and "Holm" in md and "commit" in md
 
     with open(fabricated["results"] / "table2_per_seed.csv") as f:
         per_seed = list(csv.DictReader(f))
@@ -197,7 +201,7 @@ def test_no_welch_test_between_cells_of_different_budgets(tmp_path):
     assert len(comparisons["methods"]) == 2 and comparisons["pairs"] == []  # no pair across budgets either
     tables.write_table2([row], list(grid.METHODS), str(tmp_path / "out"), "", "paper")
     md = (tmp_path / "out" / "table2.md").read_text()
-    assert "| n/a (budgets differ) | n/a | n/a |" in md
+    assert "Reacher, Meta (independent): not compared (budgets differ)." in md
 
 
 def test_steps_to_threshold(fabricated):
@@ -259,7 +263,19 @@ def test_figures_readme_and_manifest(fabricated):
     manifest = json.loads((res / "manifest.json").read_text())
     assert {c["method"] for c in manifest["cells"] if c["task"] == "inverted_double_pendulum"} == \
         {"meta-independent", "meta-variance", "ddpg-paramnoise"}
-    assert ["inverted_double_pendulum", "ddpg-normal"] in manifest["not_run"]
+    assert manifest["not_run"] == [["pendulum", "meta-variance"], ["pendulum", "ddpg-paramnoise"]]
+    assert manifest["grid_without_cells"] == {"tasks": ["inverted_pendulum", "hopper", "halfcheetah", "reacher"],
+                                              "methods": ["ddpg-normal"]}
+    readme = (res / "README.md").read_text()
+    assert "Left out of the tables (the grid has no cell stored for them): InvertedPendulum, Hopper, HalfCheetah, " \
+           "Reacher; DDPG (normal noise)." in readme
+    # the aggregate needs every method on a task: Pendulum's Meta is unfinished, so only IDP enters
+    agg = json.loads((res / "aggregate.json").read_text())
+    assert agg["tasks"] == ["inverted_double_pendulum"] and agg["built"]["grid"] == "table2.json"
+    assert {"aggregate.md", "performance_profiles.png", "coverage.md", "coverage.json"} <= set(manifest["files"])
+    cov = json.loads((res / "coverage.json").read_text())
+    assert {(r["phase"], r["group"]) for r in cov["rows"]} == {(w, g) for w in ("early", "late")
+                                                               for g in ("teacher", "student", "ddpg")}
     cell = next(c for c in manifest["cells"] if c["method"] == "ddpg-paramnoise")
     assert cell["seeds"] == 4 and cell["budget_env_steps"] == 20000 and cell["wall_seconds"] == pytest.approx(2.0)
     assert manifest["build"]["machine"]["cpu_count"] == os.cpu_count()
@@ -307,9 +323,10 @@ def test_behaviour_table_summarises_what_the_explorer_stored(tmp_path):
     assert json.loads((tmp_path / "behaviour.json").read_text())["rows"][0]["method"] == "meta-independent"
 
 
-def test_table2_judges_meta_against_the_better_noise_baseline_per_task(tmp_path):
-    """The verdict row: the noise baseline with the higher mean (of the same budget), Meta minus it with the Welch
-    CI of the difference, p, and 'better'/'worse' only at p < 0.05."""
+def test_table2_judges_every_teacher_against_every_noise_baseline_with_holm(tmp_path):
+    """One family per noise baseline, the grid's own first: every teacher against it on every task where both
+    finished; Welch p Holm-corrected within the family, the TOST of the anchors' margin beside it, and the
+    verdict words; no baseline is picked by its mean."""
     rng = np.random.default_rng(3)
     steps = np.arange(1, 11) * 1000
     data = {"hopper": {"meta-independent": rng.normal(900, 30, (4, 10)), "ddpg-paramnoise": rng.normal(500, 40, (4, 10)),
@@ -321,15 +338,31 @@ def test_table2_judges_meta_against_the_better_noise_baseline_per_task(tmp_path)
         for method, values in cells_.items():
             fabricate_run(tmp_path / task / method, task, method, values, steps)
             results[(task, method)] = cells.load_run(str(tmp_path / task / method), task, method)
-    rows = {r["task"]: r for r in tables.table2_rows(results, list(data), grid.GRIDS["ddpg"])}
-    v = rows["hopper"]["vs_best_noise"]
-    a, b = data["hopper"]["meta-independent"][:, -1], data["hopper"]["ddpg-normal"][:, -1]
+    rows = tables.table2_rows(results, list(data), grid.GRIDS["ddpg"])
+    anchors = {"hopper": (0.0, 1000.0), "reacher": (-40.0, -4.0)}
+    fams = tables.verdict_families(rows, grid.GRIDS["ddpg"], "ddpg-paramnoise", anchors)
+    assert [f["baseline"] for f in fams] == ["ddpg-paramnoise", "ddpg-normal"]
+    assert fams[0]["fixed_in_advance"] and not fams[1]["fixed_in_advance"]
+    assert [(c["task"], c["method"]) for c in fams[0]["comparisons"]] == [("hopper", "meta-independent")]
+    normal = {c["task"]: c for c in fams[1]["comparisons"]}
+    assert set(normal) == {"hopper", "reacher"}  # pendulum has no teacher
+    finals = lambda t, m: data[t][m][:, -1]
+    raw = [stats.ttest_ind(finals(t, "meta-independent"), finals(t, "ddpg-normal"), equal_var=False).pvalue
+           for t in ("hopper", "reacher")]
+    assert [normal[t]["p"] for t in ("hopper", "reacher")] == pytest.approx(raw)
+    assert [normal[t]["p_holm"] for t in ("hopper", "reacher")] == pytest.approx(list(stats_lib.holm(raw)))
+    assert normal["hopper"]["verdict"] == "better" and normal["reacher"]["margin"] == pytest.approx(0.05 * 36)
+    a, b = finals("hopper", "meta-independent"), finals("hopper", "ddpg-normal")
     ci = stats.ttest_ind(a, b, equal_var=False).confidence_interval(0.95)
-    assert v["method"] == "ddpg-normal" and v["verdict"] == "better"
-    assert v["difference"] == pytest.approx(a.mean() - b.mean()) and v["ci95"] == pytest.approx([ci.low, ci.high])
-    assert v["p"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue)
-    assert rows["reacher"]["vs_best_noise"]["verdict"] == "n.s."  # the one noise baseline run, p >= 0.05
-    assert rows["pendulum"]["vs_best_noise"] is None  # no Meta cell
+    assert normal["hopper"]["ci95"] == pytest.approx([ci.low, ci.high])
+    assert normal["reacher"]["verdict"] in ("inconclusive", "equivalent")
+    assert normal["reacher"]["verdict"] == ("equivalent" if normal["reacher"]["p_equivalence_holm"] < 0.05
+                                            else "inconclusive")
+    tables.write_table2(rows, grid.GRIDS["ddpg"], str(tmp_path / "out"), "", "paper", families=fams)
+    md = (tmp_path / "out" / "table2.md").read_text()
+    assert "### Against DDPG (param noise) (the grid's baseline, fixed in advance): a family of 1 comparison" in md
+    assert "### Against DDPG (normal noise): a family of 2 comparisons" in md and "better noise baseline" not in md
+    assert json.loads((tmp_path / "out" / "table2.json").read_text())["verdicts"][1]["baseline"] == "ddpg-normal"
     # The footer's engines: the MuJoCo cells' physics; a grid with only the JAX Pendulum stored names no MuJoCo engine.
     assert tables.engines_text(results.values()) == "MJX"
     assert "MJX" not in tables.engines_text([results[("pendulum", "ddpg-normal")]])
@@ -351,7 +384,7 @@ def test_modern_preset_compares_meta_with_its_own_gaussian_noise_ddpg(tmp_path):
     a, b = data["meta-independent"][:, -1], data["ddpg-normal"][:, -1]
     assert table["rows"][0]["welch"]["p"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue)
     md = (results / "modern" / "table2.md").read_text()
-    assert "Meta (ind.) − DDPG (normal noise)" in md and "for scale only" in md
+    assert "### Against DDPG (normal noise) (the grid's baseline, fixed in advance)" in md and "for scale only" in md
     with open(results / "modern" / "steps_to_threshold.csv") as f:
         rows = list(csv.DictReader(f))
     assert float(rows[0]["threshold"]) == pytest.approx(data["ddpg-normal"].mean(0).max())
@@ -599,7 +632,7 @@ def test_the_td3_grid_compares_meta_on_td3_with_td3_and_gaussian_noise(tmp_path)
     assert table["rows"][0]["welch"]["p"] == pytest.approx(stats.ttest_ind(a, b, equal_var=False).pvalue)
     md = (results / "table2.md").read_text()
     assert md.startswith("# Table 2: final evaluation return (paper preset, TD3 student)")
-    assert "Meta (ind.) − TD3 (normal noise)" in md and "for scale only" in md
+    assert "### Against TD3 (normal noise) (the grid's baseline, fixed in advance)" in md and "for scale only" in md
     assert (results / "README.md").read_text().startswith("# Results (paper preset, TD3 student)")
     assert "TD3 baseline's best" in (results / "steps_to_threshold.md").read_text()
     with open(results / "steps_to_threshold.csv") as f:
@@ -673,9 +706,56 @@ def test_provenance_is_dirty_for_code_changes_not_for_rewritten_results(tmp_path
     spec = importlib.util.spec_from_file_location("copied_reporting", repo / "metapg_jax" / "reporting.py")
     copied = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(copied)  # its provenance() reads the copy's repository
-    assert copied.provenance()["dirty"] is False
+    assert copied.provenance()["dirty"] is False and copied.uncommitted_diff() == ""
     (repo / "results" / "table.md").write_text("b\n")  # an output rewritten between cells
     assert copied.provenance()["dirty"] is False
     (repo / "metapg_jax" / "reporting.py").write_text((repo / "metapg_jax" / "reporting.py").read_text() + "\n")
     assert copied.provenance()["dirty"] is True
+    diff = copied.uncommitted_diff()  # the code change, not the rewritten output
+    assert "metapg_jax/reporting.py" in diff and "table.md" not in diff
     assert reporting.provenance()["commit"] != copied.provenance()["commit"]
+
+
+def test_a_call_from_a_dirty_tree_stores_its_diff_and_the_tables_count_it(tmp_path):
+    """A dirty call writes uncommitted-<call>.diff beside reproduce.json (named in its call entry), the archive
+    keeps it, and the manifest and footer carry the dirty flag, the diffs, every commit and the engine."""
+    steps = np.arange(1, 6) * 1000
+    rng = np.random.default_rng(0)
+    machine = {"platform": "p", "cpu_count": 2}
+    outs = {}
+    for method, dirty in (("meta-independent", True), ("ddpg-paramnoise", True), ("ddpg-normal", False)):
+        out = tmp_path / "runs" / method
+        fabricate_run(out, "hopper", method, rng.normal(0, 1, (2, 5)), steps)
+        started = {"commit": f"c-{method}", "dirty": dirty, "machine": machine}
+        diff = "diff --git a/x.py b/x.py\n+changed" if method == "meta-independent" else ""
+        reproduce._write_cell_record(str(out), ["--a"], 0, 1.0, started, diff)
+        if method == "meta-independent":  # a second, clean call (a resume) adds no diff
+            reproduce._write_cell_record(str(out), ["--a"], 0, 1.0, {**started, "commit": "c-2", "dirty": False})
+        if method == "ddpg-paramnoise":  # as a cell recorded before diffs were stored
+            os.remove(out / "uncommitted-1.diff")
+        outs[method] = out
+    record = json.loads((outs["meta-independent"] / "reproduce.json").read_text())
+    assert [c.get("diff") for c in record["calls"]] == ["uncommitted-1.diff", None]
+    assert (outs["meta-independent"] / "uncommitted-1.diff").read_text() == "diff --git a/x.py b/x.py\n+changed\n"
+    assert record["commits"] == ["c-2", "c-meta-independent"]
+    archived = {}
+    for method, out in outs.items():
+        assert cells.archive_cell(str(out), str(tmp_path / "cells" / method), method)
+        archived[method] = cells.load_run(str(tmp_path / "cells" / method), "hopper", method)
+    assert (tmp_path / "cells" / "meta-independent" / "uncommitted-1.diff").exists()
+    prov = {m: cells.cell_provenance(r) for m, r in archived.items()}
+    assert prov["meta-independent"]["dirty"] and prov["meta-independent"]["diffs"] == ["uncommitted-1.diff"]
+    assert prov["ddpg-paramnoise"]["dirty"] and prov["ddpg-paramnoise"]["diffs"] == []
+    assert not prov["ddpg-normal"]["dirty"] and prov["ddpg-normal"]["physics"] == "mjx"
+    assert prov["ddpg-normal"]["physics_recorded"]
+    assert prov["meta-independent"]["commits"] == ["c-2", "c-meta-independent"]
+    build = {"built": "now", "runs_dir": "r", "commit": "b", "dirty": False, "machine": machine}
+    footer = cells.provenance_footer(build, archived.values())
+    assert "`c-2`, `c-ddpg-normal`, `c-ddpg-paramnoise`, `c-meta-independent`" in footer
+    assert "2 of 3 cells ran from a tree with uncommitted changes (1 without a stored diff: hopper/ddpg-paramnoise)" in footer
+    assert "engines: mjx." in footer
+    # a config from before the physics option ran on MJX, the only engine then: said so, not hidden
+    archived["ddpg-normal"].config["env"].pop("physics")
+    assert cells.cell_physics(archived["ddpg-normal"]) == ("mjx", False)
+    assert "mjx inferred for cells whose config predates the physics option" in cells.provenance_footer(
+        build, [archived["ddpg-normal"]])

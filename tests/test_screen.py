@@ -79,8 +79,14 @@ def test_tiny_screen_runs_skips_and_reports(tmp_path, capsys):
             json.load(f)["final_return_per_seed"])
     with open(os.path.join(results, "README.md")) as f:
         text = f.read()
-    base = max(("ddpg-paramnoise", "ddpg-normal"), key=lambda n: summary["finished"][n]["mean"])
-    assert f"vs {screen.VARIANTS[base].label} (p)" in text
+    # a verdict column per reference, each a family over the tasks (no baseline picked by its mean)
+    assert all(f"vs {screen.VARIANTS[b].label} |" in text for b in screen.BASELINES)
+    assert set(summary["finished"]["paper-teacher"]["verdicts"]) == {"ddpg-paramnoise", "ddpg-normal"}
+    assert set(summary["finished"]["ddpg-normal"]["verdicts"]) == {"paper-teacher"}
+    judged = summary["finished"]["ddpg-normal"]["verdicts"]["paper-teacher"]
+    assert judged["verdict"] in ("better", "worse", "equivalent", "inconclusive") and "p_holm" in judged
+    with open(os.path.join(results, "aggregate.json")) as f:
+        assert json.load(f)["tasks"] == ["pendulum"]
     assert "Not run (or not finished) yet:" in text and "fresh R_hat(pi)" in text
     assert os.path.exists(os.path.join(results, "pendulum", "curves.png"))
     capsys.readouterr()

@@ -119,3 +119,28 @@ def test_corrected_verdicts():
     assert stats.corrected_verdict(0.1, 0.6, 0.01) == "equivalent"
     assert stats.corrected_verdict(0.1, 0.06, 0.2) == "inconclusive"
     assert stats.corrected_verdict(0.1, math.nan, math.nan) == "inconclusive"
+
+
+def test_a_family_is_judged_with_holm_on_both_tests():
+    rng = np.random.default_rng(3)
+    base = rng.normal(0.0, 0.2, 8)
+    close = rng.normal(0.0, 0.2, 8)                   # within a margin of 1: equivalent
+    far = base + 10.0                                  # far above: better, even corrected
+    noisy = rng.normal(0.5, 5.0, 8)                    # wide: neither
+    pairs = [(close, base, 1.0), (far, base, 1.0), (noisy, base, 1.0), (close, base, None)]
+    got = stats.judge_family(pairs)
+    assert [g["verdict"] for g in got] == ["equivalent", "better", "inconclusive", "inconclusive"]
+    raw = [stats.welch_test(a, b)[1] for a, b, _ in pairs]
+    np.testing.assert_allclose([g["p_holm"] for g in got], stats.holm(raw))
+    tosts = [stats.tost(a, b, 1.0) for a, b, _ in pairs[:3]] + [math.nan]
+    np.testing.assert_allclose([g["p_equivalence_holm"] for g in got], stats.holm(tosts))
+    assert math.isnan(got[3]["p_equivalence"]) and got[3]["margin"] is None
+    diff, half = stats.welch_difference(far, base)
+    assert got[1]["difference"] == diff and got[1]["ci95"] == [diff - half, diff + half]
+    # the correction counts the family: a raw p between 0.05/3 and 0.05 is 'better' alone, not among three
+    a = base + 0.35
+    p = stats.welch_test(a, base)[1]
+    assert 0.05 / 3 < p < 0.05
+    assert stats.judge_family([(a, base, None)])[0]["verdict"] == "better"
+    null = (base, base + 0.0, None)
+    assert stats.judge_family([(a, base, None), null, null])[0]["verdict"] == "inconclusive"
