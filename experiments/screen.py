@@ -391,14 +391,19 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
     with open(md, "w") as f:
         f.write(markdown(by_task, upto, seeds, build, physics, judged))
     reporting.write_json_atomic(os.path.join(results_dir, "screen.json"), summary)
-    everywhere = [n for n in VARIANTS if all(n in {r["name"] for r in rows} for rows, _ in by_task.values())]
-    grid = {"rows": [{"task": task, "methods": {r["name"]: {"status": "done", "per_seed": list(r["finals"])}
-                                                for r in rows if r["name"] in everywhere}}
-                     for task, (rows, _) in by_task.items()]}
+    # A variant with no cell of its own on a task stands for the cell it equals there (its change is the task's
+    # preset: the paper teacher's; or the same config as an earlier variant's), as the tables say.
+    finished = {task: {r["name"]: r["finals"] for r in rows} for task, (rows, _) in by_task.items()}
+    stands_for = {(task, n): (CONTROL if same_as(task, n, physics) == "" else same_as(task, n, physics) or n)
+                  for task in finished for n in VARIANTS}
+    everywhere = [n for n in VARIANTS if all(stands_for[(t, n)] in finished[t] for t in finished)]
+    grid = {"rows": [{"task": task, "methods": {n: {"status": "done", "per_seed": list(finished[task][stands_for[(task, n)]])}
+                                                for n in everywhere}} for task in finished]}
     scored = aggregate.grid_scores(grid, anchors) if anchors is not None and everywhere else None
     if scored and scored[0]:
         rep = aggregate.report(grid, anchors, scored)
         rep["variants_not_on_every_task"] = [n for n in VARIANTS if n not in everywhere]
+        rep["standing_for"] = {f"{t}/{n}": o for (t, n), o in stands_for.items() if o != n and n in everywhere}
         files += aggregate.write(rep, scored, results_dir, "screen", {
             "date": build["built"][:10], "commit": build["commit"], "dirty": build["dirty"],
             "grid": "screen.json", "anchors": aggregate.repo_path(anchors_path)},
