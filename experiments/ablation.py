@@ -272,10 +272,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     from metapg_jax import reporting
 
-    task = runs[0][1].task
-    files = write_report(rows, task, upto, a.out)
+    task, build = runs[0][1].task, cells.build_info(a.out)
+    files = write_report(rows, task, upto, a.out, build)
     reporting.write_json_atomic(os.path.join(a.out, MANIFEST),
-                                {"task": task, "upto": upto, "runs": [{"name": n, "path": p} for n, p in specs]})
+                                {"task": task, "upto": upto, "runs": [{"name": n, "path": p} for n, p in specs],
+                                 "build": build})
     for r in rows:
         t = r["teacher"]
         print(f"{r['name']}: final {r['mean']:.1f} ± {r['std']:.1f}"

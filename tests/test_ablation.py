@@ -141,3 +141,27 @@ def test_config_diff_counts_fields_added_later_at_their_defaults():
         del old[key]
     del old["env"]["physics"]
     assert ablation.config_diff(new, old) == {"meta.teacher_steps": (1, 100)}
+
+
+def test_the_committed_ablation_rebuilds_from_its_archive_byte_for_byte(tmp_path, monkeypatch):
+    """``results/ablations/halfcheetah`` is what ``--rebuild`` builds from its ``cells/`` (the build's
+    provenance, stored in ``ablation.json``, pinned); curves.png is written, not compared."""
+    import copy
+    import json
+    import os
+    import shutil
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    folder = os.path.join("results", "ablations", "halfcheetah")
+    committed = os.path.join(root, folder)
+    with open(os.path.join(committed, "ablation.json")) as f:
+        stored = json.load(f)
+    shutil.copytree(os.path.join(committed, "cells"), tmp_path / folder / "cells")
+    shutil.copy(os.path.join(committed, "ablation.json"), tmp_path / folder / "ablation.json")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cells, "build_info", lambda out: copy.deepcopy(stored["build"]))
+    assert ablation.main(["--out", folder, "--rebuild"]) == 0
+    for name in ("README.md", "per_seed.csv", "ablation.json"):
+        with open(os.path.join(committed, name), "rb") as f:
+            assert (tmp_path / folder / name).read_bytes() == f.read(), name
+    assert (tmp_path / folder / "curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
