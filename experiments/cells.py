@@ -206,6 +206,16 @@ def run_commits(r: RunResult) -> list[str]:
     return sorted({c for c in found if c and c != "unknown"})
 
 
+def verification(r: RunResult) -> dict | None:
+    """The cell's ``verified.json`` (``experiments.verify``: its first intervals re-run from a clean checkout
+    of its commit), summarised; None where it was not checked."""
+    v = read_json(os.path.join(r.path, "verified.json"))
+    if not v:
+        return None
+    return {k: v.get(k) for k in ("verdict", "commit", "env_steps", "max_relative_difference")} | \
+        {"date": v.get("checked", {}).get("date")}
+
+
 def is_dirty(r: RunResult) -> bool:
     """Whether the cell's code ran from a tree with uncommitted changes at any point: its start, a recorded call
     or a budget extension."""
@@ -227,7 +237,7 @@ def cell_provenance(r: RunResult) -> dict:
     return {
         "task": r.task, "method": r.method, "path": r.path, "complete": r.complete,
         "commit": prov.get("commit"), "commits": run_commits(r),
-        "dirty": is_dirty(r), "diffs": stored_diffs(r), "physics": cell_physics(r)[0],
+        "dirty": is_dirty(r), "diffs": stored_diffs(r), "verified": verification(r), "physics": cell_physics(r)[0],
         "physics_recorded": cell_physics(r)[1], "seeds": r.num_seeds, "base_seed": r.run_args.get("seed"),
         "budget_env_steps": r.budget, "env_steps_done": r.env_steps_done, "evaluations": int(r.steps.size),
         "preset": r.config.get("preset"), "run_args": r.run_args, "config": r.config,
@@ -239,15 +249,39 @@ def cell_provenance(r: RunResult) -> dict:
     }
 
 
+def dirty_summary(cells: Iterable[RunResult]) -> str:
+    """A sentence on the cells that ran from a tree with uncommitted changes: how many, which have no stored
+    diff, and what re-running those from a clean checkout of their commit found (``verification``); '' when
+    none did."""
+    cells = list(cells)
+    dirty = [c for c in cells if is_dirty(c)]
+    if not dirty:
+        return ""
+    undiffed = [c for c in dirty if not stored_diffs(c)]
+    checked = {c.path: (verification(c) or {}).get("verdict") for c in undiffed}
+    reproduced = [c for c in undiffed if checked[c.path] == "reproduced"]
+    differs = [c for c in undiffed if checked[c.path] == "differs"]
+    names = lambda cs: ", ".join(f"{c.task}/{c.method}" for c in cs)
+    text = (f"{len(dirty)} of {len(cells)} cells ran from a tree with uncommitted changes"
+            + (f" ({len(undiffed)} without a stored diff: {names(undiffed)})" if undiffed else
+               " (their diffs are stored beside them)") + ".")
+    if reproduced or differs:
+        text += (f" Re-run from a clean checkout of their commit over their first evaluation interval "
+                 f"(`experiments.verify`, `verified.json`), {len(reproduced)} of those reproduced the stored "
+                 f"numbers" + (f" and {len(differs)} did not ({names(differs)})" if differs else "")
+                 + (f"; {len(undiffed) - len(reproduced) - len(differs)} not checked" if
+                    len(reproduced) + len(differs) < len(undiffed) else "") + ".")
+    return text
+
+
 def provenance_footer(build: dict, cells: Iterable[RunResult]) -> str:
-    """Markdown lines: commit and machine of this build; every commit the runs used, how many cells ran from a
-    tree with uncommitted changes (and whether their diffs are stored) and the engines."""
+    """Markdown lines: commit and machine of this build; every commit the runs used, the engines and
+    ``dirty_summary``."""
     cells = list(cells)
     commits = sorted({commit for c in cells for commit in run_commits(c)} or {"unknown"})
-    dirty = [c for c in cells if is_dirty(c)]
-    undiffed = [c for c in dirty if not stored_diffs(c)]
     physics = {cell_physics(c) for c in cells}
     inferred = sorted({p for p, recorded in physics if not recorded})
+    dirty = dirty_summary(cells)
     lines = ["", "---", "",
              f"Built {build['built']} from `{build['runs_dir']}` at commit `{build['commit'] or 'unknown'}`"
              f"{' (uncommitted changes)' if build.get('dirty') else ''} on {build['machine']['platform']} "
@@ -256,13 +290,9 @@ def provenance_footer(build: dict, cells: Iterable[RunResult]) -> str:
              + (f"; engines: {', '.join(sorted({p for p, _ in physics}))}"
                 + (f" ({', '.join(inferred)} inferred for cells whose config predates the physics option)"
                    if inferred else "") if cells else "")
-             + "."
-             + (f" {len(dirty)} of {len(cells)} cells ran from a tree with uncommitted changes"
-                + (f" ({len(undiffed)} without a stored diff: "
-                   + ", ".join(f"{c.task}/{c.method}" for c in undiffed) + ")" if undiffed else
-                   " (their diffs are stored beside them)") + "." if dirty else "")
-             + " Per-cell commits, dirty flag, diffs, engine, config, seeds, budget, machine and wall time: "
-               "`manifest.json`."]
+             + "." + (f" {dirty}" if dirty else "")
+             + " Per-cell commits, dirty flag, diffs, checks, engine, config, seeds, budget, machine and wall "
+               "time: `manifest.json`."]
     return "\n".join(lines) + "\n"
 
 

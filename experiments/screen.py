@@ -353,9 +353,12 @@ def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "
         if pending:
             lines.append("")
             lines.append("Not run (or not finished) yet: " + ", ".join(VARIANTS[n].label for n in pending) + ".")
+    dirty = cells.dirty_summary([cells.load_run(r["path"], task, r["name"]) for task in tasks
+                                 for r in by_task[task][0]])
     lines += ["", "---", "", f"Built {build['built']} at commit `{build.get('commit') or 'unknown'}` on "
-              f"{build['machine']['platform']}. Each cell's commit, config, seeds, budget, machine and wall time: "
-              "`cells/<task>/<variant>/reproduce.json` and `config.json`; summary: `screen.json`."]
+              f"{build['machine']['platform']}." + (f" {dirty}" if dirty else "") + " Each cell's commit, config, "
+              "seeds, budget, machine and wall time: `cells/<task>/<variant>/reproduce.json` and `config.json` "
+              "(`verified.json` where a cell was re-run from its commit); summary: `screen.json`."]
     return "\n".join(lines) + "\n"
 
 
