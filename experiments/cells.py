@@ -249,28 +249,41 @@ def cell_provenance(r: RunResult) -> dict:
     }
 
 
+def dirty_after_start(r: RunResult) -> bool:
+    """Whether a call after the first (a resume) or a budget extension ran from a tree with uncommitted
+    changes: code that a re-run of the first intervals (``experiments.verify``) does not cover."""
+    calls = r.provenance.get("calls") or []
+    return any(c.get("dirty") for c in calls[1:]) or any(e.get("dirty") for e in r.info.get("extensions", []))
+
+
 def dirty_summary(cells: Iterable[RunResult]) -> str:
     """A sentence on the cells that ran from a tree with uncommitted changes: how many, which have no stored
-    diff, and what re-running those from a clean checkout of their commit found (``verification``); '' when
-    none did."""
+    diff, what re-running those from a clean checkout of their commit found (``verification``) and which
+    ran a later call or an extension from a dirty tree (not covered by that check); '' when none did."""
     cells = list(cells)
     dirty = [c for c in cells if is_dirty(c)]
     if not dirty:
         return ""
     undiffed = [c for c in dirty if not stored_diffs(c)]
+    later = [c for c in undiffed if dirty_after_start(c)]
     checked = {c.path: (verification(c) or {}).get("verdict") for c in undiffed}
     reproduced = [c for c in undiffed if checked[c.path] == "reproduced"]
     differs = [c for c in undiffed if checked[c.path] == "differs"]
+    unchecked = [c for c in undiffed if checked[c.path] is None and c not in later]
     names = lambda cs: ", ".join(f"{c.task}/{c.method}" for c in cs)
     text = (f"{len(dirty)} of {len(cells)} cells ran from a tree with uncommitted changes"
             + (f" ({len(undiffed)} without a stored diff: {names(undiffed)})" if undiffed else
                " (their diffs are stored beside them)") + ".")
     if reproduced or differs:
-        text += (f" Re-run from a clean checkout of their commit over their first evaluation interval "
-                 f"(`experiments.verify`, `verified.json`), {len(reproduced)} of those reproduced the stored "
-                 f"numbers" + (f" and {len(differs)} did not ({names(differs)})" if differs else "")
-                 + (f"; {len(undiffed) - len(reproduced) - len(differs)} not checked" if
-                    len(reproduced) + len(differs) < len(undiffed) else "") + ".")
+        text += (f" Re-run from a clean checkout of the commit they started at, over their first evaluation "
+                 f"interval (`experiments.verify`, `verified.json`): {len(reproduced)} reproduced the stored "
+                 f"numbers" + (f" ({names(reproduced)})" if reproduced and (differs or later or unchecked) else "")
+                 + (f", {len(differs)} did not ({names(differs)})" if differs else "") + ".")
+    if later:
+        text += (f" {len(later)} ran a resumed call or a budget extension from a dirty tree, which such a re-run "
+                 f"does not cover ({names(later)}).")
+    if unchecked:
+        text += f" Not checked: {names(unchecked)}."
     return text
 
 

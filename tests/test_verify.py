@@ -39,7 +39,7 @@ def test_a_cell_rerun_at_its_commit_is_reproduced_and_a_changed_one_differs(tmp_
     assert "--steps=600" in record["command"] and "runs/somewhere" not in record["command"]
     r = cells.load_run(str(cell), "pendulum", "ddpg-normal")
     assert cells.cell_provenance(r)["verified"]["verdict"] == "reproduced"
-    assert "1 of those reproduced the stored numbers" in cells.dirty_summary([r])
+    assert "1 reproduced the stored numbers." in cells.dirty_summary([r])
 
     # as if the uncommitted changes had changed training: one number off
     from metapg_jax.reporting import read_jsonl
@@ -53,6 +53,13 @@ def test_a_cell_rerun_at_its_commit_is_reproduced_and_a_changed_one_differs(tmp_
     (cell / "verified.json").write_text(json.dumps({**record, "verdict": "differs"}))
     assert "did not (pendulum/ddpg-normal)" in cells.dirty_summary([cells.load_run(str(cell), "pendulum",
                                                                                    "ddpg-normal")])
+    # an extension from a dirty tree trains code the first intervals never ran: said, not counted as checked
+    stored_cfg = json.loads((cell / "config.json").read_text())
+    stored_cfg["extensions"] = [{"from_steps": 600, "to_steps": 900, "commit": head, "dirty": True}]
+    (cell / "config.json").write_text(json.dumps(stored_cfg))
+    extended = cells.load_run(str(cell), "pendulum", "ddpg-normal")
+    assert cells.dirty_after_start(extended)
+    assert "1 ran a resumed call or a budget extension from a dirty tree" in cells.dirty_summary([extended])
 
 
 def test_bad_input_is_one_line(tmp_path, capsys):
