@@ -62,13 +62,13 @@ def test_each_variant_changes_the_config_it_names_and_nothing_else(task):
 
 def test_tiny_screen_runs_skips_and_reports(tmp_path, capsys):
     runs, results = str(tmp_path / "runs"), str(tmp_path / "results")
-    argv = ["--tasks=pendulum", "--variants=paper-teacher,ddpg-paramnoise,ddpg-normal",
+    argv = ["--tasks=pendulum", "--variants=paper-teacher,ddpg-normal",
             "--steps=900", "--seeds=2", f"--runs-dir={runs}", f"--results-dir={results}", "--quiet"]
     argv += [f"--set={s}" for s in TINY]
     assert screen.main(argv) == 0
     with open(os.path.join(results, "screen.json")) as f:
         summary = json.load(f)["tasks"]["pendulum"]
-    assert set(summary["finished"]) == {"paper-teacher", "ddpg-paramnoise", "ddpg-normal"}
+    assert set(summary["finished"]) == {"paper-teacher", "ddpg-normal"}
     assert "fresh-baseline" in summary["not_finished"]
     # The archived cell carries the grid's provenance and the run's own numbers.
     cell = os.path.join(results, "cells", "pendulum", "paper-teacher")
@@ -81,7 +81,7 @@ def test_tiny_screen_runs_skips_and_reports(tmp_path, capsys):
         text = f.read()
     # a verdict column per reference, each a family over the tasks (no baseline picked by its mean)
     assert all(f"vs {screen.VARIANTS[b].label} |" in text for b in screen.BASELINES)
-    assert set(summary["finished"]["paper-teacher"]["verdicts"]) == {"ddpg-paramnoise", "ddpg-normal"}
+    assert set(summary["finished"]["paper-teacher"]["verdicts"]) == {"ddpg-normal"}  # param noise: not run
     assert set(summary["finished"]["ddpg-normal"]["verdicts"]) == {"paper-teacher"}
     judged = summary["finished"]["ddpg-normal"]["verdicts"]["paper-teacher"]
     assert judged["verdict"] in ("better", "worse", "equivalent", "inconclusive") and "p_holm" in judged
@@ -93,7 +93,7 @@ def test_tiny_screen_runs_skips_and_reports(tmp_path, capsys):
     # A second call trains nothing.
     assert screen.main(argv) == 0
     out = capsys.readouterr().out
-    assert out.count("done, skipped") == 3 and "running:" not in out
+    assert out.count("done, skipped") == 2 and "running:" not in out
 
 
 def test_bad_input_is_one_line_before_anything_trains(tmp_path, capsys):

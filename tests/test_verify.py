@@ -7,12 +7,11 @@ import subprocess
 import sys
 
 from experiments import cells, verify
+from tests.helpers import TINY_BUFFER, TINY_RUN
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-# The tiny DDPG pendulum run of tests/test_screen.py's settings (its program is in the session's compile cache).
-ARGV = ["--env=pendulum", "--method=ddpg", "--noise=normal", "--preset=paper", "--seeds=2", "--seed=0",
-        "--steps=600", "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "run.eval_episodes=2",
-        "--set", "ddpg.batch_size=16", "--set", "run.buffer_size=900", "--no-plot", "--quiet"]
+# The command-line tests' tiny run (its programs are in the session's compile cache).
+ARGV = [*TINY_RUN, *TINY_BUFFER, "--steps=600", "--no-plot", "--quiet"]
 
 
 def test_a_cell_rerun_at_its_commit_is_reproduced_and_a_changed_one_differs(tmp_path):
@@ -37,7 +36,7 @@ def test_a_cell_rerun_at_its_commit_is_reproduced_and_a_changed_one_differs(tmp_
     assert record["verdict"] == "reproduced" and record["commit"] == head and record["env_steps"] == 600
     assert [(r["seed"], r["chunk"]) for r in record["rows"]] == [(0, 0), (0, 1), (1, 0), (1, 1)]
     assert "--steps=600" in record["command"] and "runs/somewhere" not in record["command"]
-    r = cells.load_run(str(cell), "pendulum", "ddpg-normal")
+    r = cells.load_run(str(cell), "pendulum", "meta-independent")
     assert cells.cell_provenance(r)["verified"]["verdict"] == "reproduced"
     assert "1 reproduced the stored numbers." in cells.dirty_summary([r])
 
@@ -51,13 +50,13 @@ def test_a_cell_rerun_at_its_commit_is_reproduced_and_a_changed_one_differs(tmp_
     assert verify.compare(stored, rerun, 1, 1e-5)["verdict"] == "differs"  # row 1 is seed 1, chunk 0
     assert verify.compare(stored, rerun[:1], 1, 1e-5)["verdict"] == "differs"  # a seed missing
     (cell / "verified.json").write_text(json.dumps({**record, "verdict": "differs"}))
-    assert "did not (pendulum/ddpg-normal)" in cells.dirty_summary([cells.load_run(str(cell), "pendulum",
-                                                                                   "ddpg-normal")])
+    assert "did not (pendulum/meta-independent)" in cells.dirty_summary([cells.load_run(str(cell), "pendulum",
+                                                                                   "meta-independent")])
     # an extension from a dirty tree trains code the first intervals never ran: said, not counted as checked
     stored_cfg = json.loads((cell / "config.json").read_text())
     stored_cfg["extensions"] = [{"from_steps": 600, "to_steps": 900, "commit": head, "dirty": True}]
     (cell / "config.json").write_text(json.dumps(stored_cfg))
-    extended = cells.load_run(str(cell), "pendulum", "ddpg-normal")
+    extended = cells.load_run(str(cell), "pendulum", "meta-independent")
     assert cells.dirty_after_start(extended)
     assert "1 ran a resumed call or a budget extension from a dirty tree" in cells.dirty_summary([extended])
 
