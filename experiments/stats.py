@@ -27,7 +27,7 @@ FINAL_DEFINITION = ("final return of a seed = mean of its last max(1, floor(T/10
                     "deterministic episodes of the student")
 STATS_DEFINITION = ("mean ± std: over seeds, sample std (ddof=1); 95% CI: mean ± t(0.975, n-1)·s/√n (Student t "
                     "over the n seeds); p: two-sided Welch t-test (scipy.stats.ttest_ind, equal_var=False) of the "
-                    "seeds' final returns, Meta (independent) vs {baseline}")
+                    "seeds' final returns (in the JSON twin's `welch`: Meta (independent) vs {baseline})")
 
 
 def stats_definition(baseline: str = BASELINE) -> str:
@@ -134,15 +134,6 @@ def _welch_se_df(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     if va + vb == 0:
         return 0.0, math.nan
     return math.sqrt(va + vb), float((va + vb) ** 2 / (va ** 2 / (a.size - 1) + vb ** 2 / (b.size - 1)))
-
-
-def verdict(a: Sequence[float], b: Sequence[float], alpha: float = 0.05) -> tuple[float, float, str]:
-    """(t, p, word) of Welch's test of a vs b: word 'better' (mean(a) > mean(b)) or 'worse' at p < ``alpha``,
-    else 'n.s.' (also when p is NaN: fewer than 2 values on a side)."""
-    t, p = welch_test(a, b)
-    if not (math.isfinite(p) and p < alpha):
-        return t, p, "n.s."
-    return t, p, "better" if float(np.mean(a)) > float(np.mean(b)) else "worse"
 
 
 def first_step_reaching(steps: np.ndarray, curve: np.ndarray, threshold: float) -> int | None:

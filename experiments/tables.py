@@ -115,7 +115,7 @@ def verdict_families(rows: list[dict], methods: Sequence[str], baseline: str,
     return families
 
 
-def verdicts_markdown(families: list[dict], rows: list[dict] | None = None) -> list[str]:
+def verdicts_markdown(families: list[dict]) -> list[str]:
     """The verdict tables of ``verdict_families``, one per baseline."""
     name = lambda m: METHOD_NAMES.get(m, m)
     task_name = lambda t: TASK_NAMES.get(t, t)

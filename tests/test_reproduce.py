@@ -21,7 +21,7 @@ from scipy import stats
 from experiments import artefacts, cells, figures, grid, reproduce, tables
 from experiments import stats as stats_lib
 from experiments.stats import (final_returns, first_step_reaching, fmt, mean_std, num_final_evaluations,
-                               t_interval, verdict, welch_difference, welch_test)
+                               t_interval, welch_difference, welch_test)
 from tests.helpers import fabricate_run
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -81,14 +81,6 @@ def test_mean_std_t_interval_and_welch_match_the_formulas():
     assert (diff - half, diff + half) == pytest.approx((ci.low, ci.high))
     assert math.isnan(welch_difference(a, b[:1])[1])
     assert math.isnan(t_interval([3.0])[1]) and math.isnan(mean_std([3.0])[1])
-
-
-def test_verdict_words_follow_the_sign_and_the_threshold():
-    low, high = [0.0, 0.1, 0.2, 0.1], [5.0, 5.1, 5.2, 5.1]
-    assert verdict(high, low)[2] == "better" and verdict(low, high)[2] == "worse"
-    t, p, word = verdict(low, [0.05, 0.15, 0.1, 0.2])  # same scale: no difference found
-    assert (t, p) == welch_test(low, [0.05, 0.15, 0.1, 0.2]) and p >= 0.05 and word == "n.s."
-    assert verdict(high, low, alpha=1e-30)[2] == "n.s." and verdict(high, low[:1])[2] == "n.s."
 
 
 def test_first_step_reaching():
