@@ -8,8 +8,9 @@ For a cell recorded as run from a tree with uncommitted changes and no stored di
 ``config.json`` or ``reproduce.json``; ``experiments.cells.is_dirty``), this tells whether those changes
 touched the training program: the compiled run is deterministic, so the clean commit gives the stored
 numbers if they did not. The cell's first recorded command (``reproduce.json``'s first call; else its
-``run_args``) runs with ``--steps`` cut to ``--chunks`` evaluation intervals and the cell's own
-``run.eval_every`` (a shorter budget gives the same first intervals: ``docs/long-runs.md``), in a ``git worktree`` of the commit, with this Python. Its
+``run_args``) runs with ``--steps`` cut to ``--chunks`` evaluation intervals, the cell's own
+``run.eval_every`` and the replay capacity of that first command (a shorter budget with the same capacity
+gives the same first intervals: ``docs/long-runs.md``), in a ``git worktree`` of the commit, with this Python. Its
 metrics rows are compared with the stored rows of the same chunks and seeds, field by field (timings
 left out). The result goes to ``<cell>/verified.json`` (the command, the commit, both numbers per seed,
 the largest relative difference and the verdict: ``reproduced`` when every compared value agrees within
@@ -37,7 +38,8 @@ TIMINGS = {"wall_time", "chunk_seconds"}
 
 def cell_command(cell: str) -> tuple[str, list[str], int]:
     """(commit, run options, eval_every) of a stored cell: the commit it started at (config.json) and its
-    first recorded command (reproduce.json), or one rebuilt from its run_args."""
+    first recorded command (reproduce.json), or one rebuilt from its run_args, with the replay capacity that
+    command ran with made explicit (a shorter ``--steps`` would otherwise shrink it)."""
     with open(os.path.join(cell, "config.json")) as f:
         stored = json.load(f)
     commit = stored.get("commit")
@@ -55,7 +57,15 @@ def cell_command(cell: str) -> tuple[str, list[str], int]:
                                            "physics", "student") if a.get(k) is not None]
         for s in a.get("overrides") or []:
             argv += ["--set", s]
-    return commit, argv, int(stored["config"]["run"]["eval_every"])
+    run = stored["config"]["run"]
+    # The replay capacity the first call ran with (its shapes are part of the compiled program): the config's,
+    # or min(1e6, the first call's budget) for 0 (an extension stores its longer budget in config.json).
+    steps = next((int(a.split("=", 1)[1]) for a in argv if a.startswith("--steps=")), None)
+    if steps is None and "--steps" in argv:
+        steps = int(argv[argv.index("--steps") + 1])
+    first_budget = steps or (stored.get("extensions") or [{}])[0].get("from_steps") or int(run["total_steps"])
+    capacity = int(run.get("buffer_size") or 0) or min(1_000_000, int(first_budget))
+    return commit, argv + ["--set", f"run.buffer_size={capacity}"], int(run["eval_every"])
 
 
 def _replace(argv: list[str], flag: str, value: str | None) -> list[str]:
