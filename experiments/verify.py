@@ -110,12 +110,15 @@ def compare(stored: list[dict], rerun: list[dict], chunks: int, rtol: float) -> 
             "rows": rows}
 
 
-def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = None) -> dict:
-    """Re-runs the cell's first ``chunks`` intervals at its commit (see the module docstring); returns the
-    record written to ``<cell>/verified.json``."""
+def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = None, at: str | None = None) -> dict:
+    """Re-runs the cell's first ``chunks`` intervals at its commit, or at ``at`` (another commit, e.g. the one
+    that committed the changes a dirty cell ran with; recorded as such), see the module docstring; returns
+    the record written to ``<cell>/verified.json``."""
     from metapg_jax import reporting
 
-    commit, argv, eval_every = cell_command(cell)
+    recorded, argv, eval_every = cell_command(cell)
+    commit = recorded if at is None else subprocess.run(["git", "rev-parse", at], cwd=ROOT, capture_output=True,
+                                                        text=True, check=True).stdout.strip()
     work = keep or tempfile.mkdtemp(prefix="metapg-verify-")
     src, out = os.path.join(work, "src"), os.path.join(work, "run")
     argv = _replace(_replace(_replace(argv, "--out", None), "--steps", str(chunks * eval_every)), "--resume", None)
@@ -135,7 +138,7 @@ def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = No
         subprocess.run(["git", "worktree", "remove", "--force", src], cwd=ROOT, capture_output=True)
         if keep is None:
             shutil.rmtree(work, ignore_errors=True)
-    record = {"commit": commit, "command": ["python", "-m", "experiments.run", *argv[:-2], "--out", "<tmp>"],
+    record = {"commit": commit, **({} if commit == recorded else {"recorded_commit": recorded}), "command": ["python", "-m", "experiments.run", *argv[:-2], "--out", "<tmp>"],
               "chunks": chunks, "env_steps": chunks * eval_every, "rtol": rtol, **result,
               "checked": {"date": datetime.date.today().isoformat(), **reporting.provenance()}}
     reporting.write_json_atomic(os.path.join(cell, RESULT), record)
@@ -149,6 +152,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--chunks", type=int, default=1, help="evaluation intervals to re-run (default 1)")
     p.add_argument("--rtol", type=float, default=1e-5, help="largest relative difference that still agrees")
     p.add_argument("--keep", default=None, help="keep the checkout and the run in this folder (one cell only)")
+    p.add_argument("--at", default=None, metavar="COMMIT",
+                   help="re-run at this commit instead of the recorded one (e.g. the commit that holds the changes "
+                        "a dirty cell ran with); the record names both")
     a = p.parse_args(argv)
     bad = [c for c in a.cells if not (os.path.isfile(os.path.join(c, "config.json"))
                                       and os.path.isfile(os.path.join(c, "metrics.jsonl")))]
@@ -160,13 +166,15 @@ def main(argv: list[str] | None = None) -> int:
     status = 0
     for cell in a.cells:
         try:
-            r = verify(cell, a.chunks, a.rtol, a.keep)
+            r = verify(cell, a.chunks, a.rtol, a.keep, a.at)
         except (RuntimeError, ValueError, OSError, subprocess.CalledProcessError) as err:
             print(f"{cell}: error: {getattr(err, 'stderr', None) or err}".strip(), file=sys.stderr)
             status = 1
             continue
-        print(f"{cell}: {r['verdict']} at {r['commit'][:7]} over {r['env_steps']:,} env steps "
-              f"(largest relative difference {r['max_relative_difference']})", flush=True)
+        print(f"{cell}: {r['verdict']} at {r['commit'][:7]}"
+              + (f" (recorded: {r['recorded_commit'][:7]})" if "recorded_commit" in r else "")
+              + f" over {r['env_steps']:,} env steps (largest relative difference {r['max_relative_difference']})",
+              flush=True)
         status = status or (0 if r["verdict"] == "reproduced" else 1)
     return status
 
