@@ -212,8 +212,8 @@ def verification(r: RunResult) -> dict | None:
     v = read_json(os.path.join(r.path, "verified.json"))
     if not v:
         return None
-    return {k: v.get(k) for k in ("verdict", "commit", "env_steps", "max_relative_difference")} | \
-        {"date": v.get("checked", {}).get("date")}
+    return {k: v.get(k) for k in ("verdict", "commit", "recorded_commit", "env_steps", "max_relative_difference")
+            if k in v} | {"date": v.get("checked", {}).get("date")}
 
 
 def is_dirty(r: RunResult) -> bool:
@@ -274,10 +274,14 @@ def dirty_summary(cells: Iterable[RunResult]) -> str:
     text = (f"{len(dirty)} of {len(cells)} cells ran from a tree with uncommitted changes"
             + (f" ({len(undiffed)} without a stored diff: {names(undiffed)})" if undiffed else
                " (their diffs are stored beside them)") + ".")
+    elsewhere = [c for c in reproduced if "recorded_commit" in (verification(c) or {})]
     if reproduced or differs:
         text += (f" Re-run from a clean checkout of the commit they started at, over their first evaluation "
                  f"interval (`experiments.verify`, `verified.json`): {len(reproduced)} reproduced the stored "
                  f"numbers" + (f" ({names(reproduced)})" if reproduced and (differs or later or unchecked) else "")
+                 + (" (" + "; ".join(f"{c.task}/{c.method} at the later commit "
+                                     f"`{verification(c)['commit'][:7]}`, which holds the changes it ran with"
+                                     for c in elsewhere) + ")" if elsewhere else "")
                  + (f", {len(differs)} did not ({names(differs)})" if differs else "") + ".")
     if later:
         text += (f" {len(later)} ran a resumed call or a budget extension from a dirty tree, which such a re-run "
