@@ -104,7 +104,9 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
         aggregate_note = f"no normalisation anchors ({aggregate.repo_path(anchors_path)} not found)"
     else:
         scored = aggregate.grid_scores({"rows": rows}, anchors)
-        if scored[0]:
+        if len(scored[1]) < 2:
+            aggregate_note = "the grid has one method with a finished cell, nothing to compare it with"
+        elif scored[0]:
             rep = aggregate.report({"rows": rows}, anchors, scored)
             files += aggregate.write(rep, scored, out_dir, grid_label(preset, student), {
                 "date": build["built"][:10], "commit": build["commit"], "dirty": build["dirty"],

@@ -460,7 +460,9 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     # 2 evaluations: the final return is the last one, as in summary.json.
     np.testing.assert_allclose(pend["methods"]["ddpg-paramnoise"]["per_seed"],
                                summary["final_return_per_seed"], rtol=1e-6)
-    assert pend["methods"]["meta-variance"] == {"status": "not run"} and pend["welch"] is not None
+    assert "meta-variance" not in pend["methods"] and pend["welch"] is not None  # planned, never run: left out
+    assert json.loads((results / "manifest.json").read_text())["grid_without_cells"]["methods"] == \
+        ["meta-variance", "ddpg-normal"]
     for name in ("table2.md", "table2_per_seed.csv", "curves_pendulum.png", "steps_to_threshold.csv",
                  "visitation_pendulum.png", "README.md", "manifest.json"):
         assert (results / name).exists(), name
@@ -549,11 +551,14 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
         r for r in after if r["task"] == "pendulum")["methods"]["meta-independent"]["run_dir"]
     assert (results / "visitation_pendulum.png").exists()
 
-    # Artefacts only, modern preset: nothing stored there, every cell "not run", own folder.
+    # Artefacts only, modern preset: nothing stored there, so no row or column, the README says why; own folder.
     assert reproduce.main(["--artefacts-only", "--preset", "modern", "--runs-dir", str(runs),
                            "--results-dir", str(results)]) == 0
     md = (results / "modern" / "table2.md").read_text()
-    assert "modern preset" in md and "| Pendulum | not run | not run | not run | not run |" in md
+    assert "modern preset" in md and "| Pendulum |" not in md
+    readme = (results / "modern" / "README.md").read_text()
+    assert "Left out of the tables (the grid has no cell stored for them): InvertedDoublePendulum" in readme
+    assert "No aggregate scores" in readme and not (results / "modern" / "aggregate.md").exists()
 
 
 # ---------------------------------------------------------------------------------------------- notebook
