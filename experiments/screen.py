@@ -10,8 +10,9 @@ Every cell is an ``experiments.reproduce`` cell (same planning, resume, ``reprod
 archive; ``plan_cell`` with the variant's run options): ``<runs-dir>/paper/<task>/<variant>``, archived to
 ``<results-dir>/cells/<task>/<variant>``. Run the same command again to resume. The report
 (``<results-dir>/README.md``, and per task ``<results-dir>/<task>/`` from ``experiments.ablation``: table,
-``per_seed.csv``, ``curves.png``) compares each finished variant with the paper's teacher and with the
-better of the two noise baselines at this budget; cells not finished are listed as not run.
+``per_seed.csv``, ``curves.png``) judges each finished variant against the paper's teacher and against
+each noise baseline (one Holm-corrected family per reference over the tasks, ``verdicts``), with the
+aggregate over the tasks in ``aggregate.md``; cells not finished are listed as not run.
 
 ``VARIANTS`` holds each variant's change and the hypothesis behind it, written before it was run.
 A variant whose change is already the task's paper preset (one teacher step per cycle on Hopper) is

@@ -1,5 +1,5 @@
 """experiments.screen: every variant changes what it says on the screen's tasks, and a tiny Pendulum screen
-runs, skips what is done, and reports against the control and the better noise baseline."""
+runs, skips what is done, and reports against the control and each noise baseline."""
 
 import copy
 import json
