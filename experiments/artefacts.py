@@ -113,10 +113,8 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
                 "grid": "table2.json", "anchors": aggregate.repo_path(anchors_path)})
         else:
             aggregate_note = "no task has a finished cell for every method: " + "; ".join(scored[3])
-    if aggregate_note:  # only what this build writes stays
-        for stale in ("aggregate.md", "aggregate.json", "performance_profiles.png"):
-            if os.path.exists(os.path.join(out_dir, stale)):
-                os.remove(os.path.join(out_dir, stale))
+    if aggregate_note:
+        _remove_stale(out_dir, ("aggregate.md", "aggregate.json", "performance_profiles.png"))
     files += figures.write_curves(results, tasks, methods, out_dir, build, preset, student=student)
     files += tables.write_steps_to_threshold(tables.steps_to_threshold_rows(results, tasks, methods, baseline),
                                              out_dir, footer, preset, build["commit"], student=student)
@@ -124,14 +122,11 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
                                       build["commit"], student=student)
     files += tables.write_behaviour(tables.behaviour_rows(results, tasks, methods), out_dir, footer, preset,
                                     build["commit"], student=student)
-    for stale in ("coverage.md", "coverage.json"):  # only what this build writes stays
-        if os.path.exists(os.path.join(out_dir, stale)):
-            os.remove(os.path.join(out_dir, stale))
+    _remove_stale(out_dir, ("coverage.md", "coverage.json"))
     files += tables.write_coverage(tables.coverage_rows(results, tasks, baseline), out_dir, footer, preset, baseline,
                                    build["commit"], student=student)
     files += figures.write_teacher_designs(results, out_dir, build, preset, student=student)
-    for stale in glob.glob(os.path.join(out_dir, "visitation_*.png")):  # only what this build draws stays
-        os.remove(stale)
+    _remove_stale(out_dir, [os.path.basename(p) for p in glob.glob(os.path.join(out_dir, "visitation_*.png"))])
     files += figures.write_visitation(results, out_dir, build,
                                       tasks if visitation_tasks is None else list(dict.fromkeys(visitation_tasks)),
                                       embedding, points_per_panel, baseline=baseline)
@@ -145,6 +140,13 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
     with open(os.path.join(out_dir, "manifest.json"), "w") as f:
         json.dump(manifest, f, indent=2, default=tables.json_default)
     return manifest
+
+
+def _remove_stale(out_dir: str, names) -> None:
+    """Removes the files ``names`` of an earlier build from ``out_dir``: only what this build writes stays."""
+    for name in names:
+        if os.path.exists(os.path.join(out_dir, name)):
+            os.remove(os.path.join(out_dir, name))
 
 
 def add_figure_options(p: argparse.ArgumentParser) -> None:

@@ -234,11 +234,12 @@ def cell_provenance(r: RunResult) -> dict:
     wall = prov.get("wall_seconds")
     if wall is None and r.summary:
         wall = (r.summary.get("compile_seconds") or 0) + (r.summary.get("train_seconds") or 0)
+    physics, physics_recorded = cell_physics(r)
     return {
         "task": r.task, "method": r.method, "path": r.path, "complete": r.complete,
         "commit": prov.get("commit"), "commits": run_commits(r),
-        "dirty": is_dirty(r), "diffs": stored_diffs(r), "verified": verification(r), "physics": cell_physics(r)[0],
-        "physics_recorded": cell_physics(r)[1], "seeds": r.num_seeds, "base_seed": r.run_args.get("seed"),
+        "dirty": is_dirty(r), "diffs": stored_diffs(r), "verified": verification(r), "physics": physics,
+        "physics_recorded": physics_recorded, "seeds": r.num_seeds, "base_seed": r.run_args.get("seed"),
         "budget_env_steps": r.budget, "env_steps_done": r.env_steps_done, "evaluations": int(r.steps.size),
         "preset": r.config.get("preset"), "run_args": r.run_args, "config": r.config,
         "machine": prov.get("machine") or {k: r.info.get(k) for k in ("jax_version", "backend", "devices")},
@@ -266,21 +267,21 @@ def dirty_summary(cells: Iterable[RunResult]) -> str:
         return ""
     undiffed = [c for c in dirty if not stored_diffs(c)]
     later = [c for c in undiffed if dirty_after_start(c)]
-    checked = {c.path: (verification(c) or {}).get("verdict") for c in undiffed}
-    reproduced = [c for c in undiffed if checked[c.path] == "reproduced"]
-    differs = [c for c in undiffed if checked[c.path] == "differs"]
-    unchecked = [c for c in undiffed if checked[c.path] is None and c not in later]
+    checked = {c.path: verification(c) or {} for c in undiffed}  # each verified.json read once
+    reproduced = [c for c in undiffed if checked[c.path].get("verdict") == "reproduced"]
+    differs = [c for c in undiffed if checked[c.path].get("verdict") == "differs"]
+    unchecked = [c for c in undiffed if not checked[c.path] and c not in later]
     names = lambda cs: ", ".join(f"{c.task}/{c.method}" for c in cs)
     text = (f"{len(dirty)} of {len(cells)} cells ran from a tree with uncommitted changes"
             + (f" ({len(undiffed)} without a stored diff: {names(undiffed)})" if undiffed else
                " (their diffs are stored beside them)") + ".")
-    elsewhere = [c for c in reproduced if "recorded_commit" in (verification(c) or {})]
+    elsewhere = [c for c in reproduced if "recorded_commit" in checked[c.path]]
     if reproduced or differs:
         text += (f" Re-run from a clean checkout of the commit they started at, over their first evaluation "
                  f"interval (`experiments.verify`, `verified.json`): {len(reproduced)} reproduced the stored "
                  f"numbers" + (f" ({names(reproduced)})" if reproduced and (differs or later or unchecked) else "")
                  + (" (" + "; ".join(f"{c.task}/{c.method} at the later commit "
-                                     f"`{verification(c)['commit'][:7]}`, which holds the changes it ran with"
+                                     f"`{checked[c.path]['commit'][:7]}`, which holds the changes it ran with"
                                      for c in elsewhere) + ")" if elsewhere else "")
                  + (f", {len(differs)} did not ({names(differs)})" if differs else "") + ".")
     if later:

@@ -398,8 +398,8 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
     # A variant with no cell of its own on a task stands for the cell it equals there (its change is the task's
     # preset: the paper teacher's; or the same config as an earlier variant's), as the tables say.
     finished = {task: {r["name"]: r["finals"] for r in rows} for task, (rows, _) in by_task.items()}
-    stands_for = {(task, n): (CONTROL if same_as(task, n, physics) == "" else same_as(task, n, physics) or n)
-                  for task in finished for n in VARIANTS}
+    same = {(task, n): same_as(task, n, physics) for task in finished for n in VARIANTS}
+    stands_for = {k: CONTROL if v == "" else v or k[1] for k, v in same.items()}
     everywhere = [n for n in VARIANTS if all(stands_for[(t, n)] in finished[t] for t in finished)]
     grid = {"rows": [{"task": task, "methods": {n: {"status": "done", "per_seed": list(finished[task][stands_for[(task, n)]])}
                                                 for n in everywhere}} for task in finished]}

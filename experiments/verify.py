@@ -71,7 +71,7 @@ def cell_command(cell: str) -> tuple[str, list[str], int]:
 def _replace(argv: list[str], flag: str, value: str | None) -> list[str]:
     """``argv`` without ``flag`` (as ``--flag=x`` or ``--flag x``), then ``--flag=value`` when given."""
     out, skip = [], False
-    for i, a in enumerate(argv):
+    for a in argv:
         if skip:
             skip = False
             continue
