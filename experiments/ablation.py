@@ -81,14 +81,14 @@ def teacher_log_std(path: str, config: dict, upto: int) -> dict | None:
     evaluations up to ``upto``; each evaluation row holds the mean over its chunk's cycles), its
     seed-mean, and how many seeds are within 0.01 of the floor ``meta.min_log_std``; None for runs
     without a teacher."""
-    from metapg_jax import reporting
+    from metapg_jax.host import metric_rows, runfiles
 
     if config.get("run", {}).get("method") != "meta":
         return None
-    rows = reporting.read_jsonl(os.path.join(path, "metrics.jsonl"))
+    rows = runfiles.read_jsonl(os.path.join(path, "metrics.jsonl"))
     if not rows or "teacher_log_std" not in rows[0]:
         return None
-    steps, values = reporting.curves(rows, "teacher_log_std")
+    steps, values = metric_rows.curves(rows, "teacher_log_std")
     per_seed = [float(x) for x in stats.final_returns(np.asarray(values)[:, steps <= upto])]
     floor = float(config["meta"]["min_log_std"])
     return {"mean": float(np.mean(per_seed)), "per_seed": per_seed, "floor": floor,
@@ -270,11 +270,11 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    from metapg_jax import reporting
+    from metapg_jax.host import runfiles
 
     task, build = runs[0][1].task, cells.build_info(a.out)
     files = write_report(rows, task, upto, a.out, build)
-    reporting.write_json_atomic(os.path.join(a.out, MANIFEST),
+    runfiles.write_json_atomic(os.path.join(a.out, MANIFEST),
                                 {"task": task, "upto": upto, "runs": [{"name": n, "path": p} for n, p in specs],
                                  "build": build})
     for r in rows:

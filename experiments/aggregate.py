@@ -154,7 +154,7 @@ def write(rep: dict, scored: tuple, out: str, title: str, built: dict, labels: d
     """aggregate.json, aggregate.md and performance_profiles.png of ``report``'s ``rep`` (from ``scored``, the
     result of ``grid_scores``) in ``out``, with ``built`` (date, commit, dirty, grid, anchors) as provenance;
     ``labels``: as ``markdown``'s."""
-    from metapg_jax.reporting import write_json_atomic
+    from metapg_jax.host.runfiles import write_json_atomic
 
     os.makedirs(out, exist_ok=True)
     rep["built"] = built
@@ -168,7 +168,7 @@ def write(rep: dict, scored: tuple, out: str, title: str, built: dict, labels: d
 
 def main(argv: list[str] | None = None) -> int:
     from experiments.normalisation import DEFAULT_OUT, load
-    from metapg_jax.reporting import provenance
+    from metapg_jax.host.provenance import record as provenance
 
     p = argparse.ArgumentParser(prog="python -m experiments.aggregate", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)

@@ -61,12 +61,6 @@ def _rss_mib() -> float:
     return float("nan")
 
 
-def _peak_rss_mib() -> float:
-    import resource
-
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
-
-
 def _timed(fn, args, repeats: int):
     """Median wall time of ``fn(*args)`` over ``repeats`` calls after one warm call; all times."""
     import jax
@@ -86,6 +80,7 @@ def measure_one(spec: dict) -> dict:
     import jax.numpy as jnp
 
     from metapg_jax import replay
+    from metapg_jax.host import terminal
     from metapg_jax.config import make_config
     from metapg_jax.rollout import rollout
     from metapg_jax.loop import train_updates
@@ -115,7 +110,7 @@ def measure_one(spec: dict) -> dict:
     state = jax.jit(vmap_seeds(trainer.init))(keys)
     t = time.perf_counter()
     # plain_vmap: an unnamed seed axis, so episode-start branches run for every seed at every step
-    # (the numbers are the same; see metapg_jax.loop.any_over_seeds): the 'before' of that change.
+    # (the numbers are the same; see metapg_jax.seeds.per_seed_cond): the 'before' of that change.
     seed_vmap = jax.vmap if spec.get("plain_vmap") else vmap_seeds
     full = jax.jit(seed_vmap(cycles_fn), donate_argnums=0).lower(state).compile()
     compile_s = time.perf_counter() - t
@@ -165,7 +160,7 @@ def measure_one(spec: dict) -> dict:
     eval_s, eval_times = _timed(eval_fn, (state, keys), max(1, repeats // 2))
 
     buffer_mib = seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20
-    peak = _peak_rss_mib()
+    peak = terminal.peak_rss_mib()
     return {
         **{k: spec[k] for k in ("env", "method", "preset", "seeds")}, "stock_mjx": bool(spec.get("stock_mjx")),
         "physics": cfg.env.physics,
@@ -415,7 +410,7 @@ def measure_sweep(task: str = "pendulum", seeds: int = 1, repeats: int = 3, chun
 
     import envs
     from metapg_jax.config import make_config, override
-    from metapg_jax.loop import seed_keys, vmap_seeds
+    from metapg_jax.seeds import seed_keys, vmap_seeds
     from metapg_jax.sweep import Sweep
     from metapg_jax.train import make_train
 
@@ -627,7 +622,7 @@ def engines_markdown(rows: list[dict]) -> list[str]:
 def _cold_compiles() -> None:
     """Compile times here are cold compiles: no persistent compile cache, whatever the environment
     says (JAX_COMPILATION_CACHE_DIR); each ``--one`` subprocess calls this before it measures."""
-    from metapg_jax import compile_cache
+    from metapg_jax.host import compile_cache
 
     compile_cache.enable(None)
 
@@ -721,7 +716,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     import jax
 
-    from metapg_jax import reporting
+    from metapg_jax.host import provenance, runfiles
 
     _cold_compiles()
     json_path = args.json or os.path.join(BENCH_DIR, "benchmarks_env_speed.json" if args.env_speed
@@ -734,7 +729,7 @@ def main(argv: list[str] | None = None) -> int:
         meta["json"] = json_path
         r = measure_sweep(tasks[0] if args.envs else "pendulum", seeds=int(seeds[0]) if args.seeds != "1,8,32" else 1,
                           repeats=args.repeats)
-        reporting.write_json_atomic(json_path, {"meta": meta, "sweep": r})
+        runfiles.write_json_atomic(json_path, {"meta": meta, "sweep": r})
         write_section(args.out, "sweep", sweep_markdown(r, meta))
         print(sweep_markdown(r, meta).splitlines()[-1], flush=True)
         return 0
@@ -742,13 +737,13 @@ def main(argv: list[str] | None = None) -> int:
         json_path = args.json or os.path.join(BENCH_DIR, "benchmarks_main_job.json")
         meta["json"] = json_path
         meta.pop("repeats")  # one run per engine
-        meta.update({k: v for k, v in reporting.provenance().items() if k in ("commit", "dirty")})
+        meta.update({k: v for k, v in provenance.record().items() if k in ("commit", "dirty")})
         rows = []
         for ph in args.main_job_physics.split(","):
             print(f"main job, --physics={ph} ...", flush=True)
             rows.append(measure_main_job(ph, args.main_job_steps))
             print(main_job_markdown(rows, meta).splitlines()[-1], flush=True)
-            reporting.write_json_atomic(json_path, {"meta": meta, "rows": rows})
+            runfiles.write_json_atomic(json_path, {"meta": meta, "rows": rows})
             write_section(args.out, "main-job", main_job_markdown(rows, meta))
         return 0
     if args.env_speed:
@@ -757,7 +752,7 @@ def main(argv: list[str] | None = None) -> int:
             results.append(measure_env_speed(task, num_envs=args.num_envs, repeats=args.repeats,
                                              stock_mjx=args.stock_mjx))
             print(env_speed_markdown(results, meta).splitlines()[-1], flush=True)
-            reporting.write_json_atomic(json_path, {"meta": meta, "env_speed": results})
+            runfiles.write_json_atomic(json_path, {"meta": meta, "env_speed": results})
             write_section(args.out, "env-speed", env_speed_markdown(results, meta))
         return 0
     if args.quick:
@@ -789,7 +784,7 @@ def main(argv: list[str] | None = None) -> int:
               f"{r['overhead_ratio']:.2f} | eval {r['eval_s']:.2f} s | RSS +{r['rss_growth_mib']:,.0f} MiB "
               f"(buffers {r['buffer_mib']:,.0f})", flush=True)
         # rewritten (atomically) after every row: a long benchmark never loses rows
-        reporting.write_json_atomic(json_path, {"meta": meta, "rows": rows})
+        runfiles.write_json_atomic(json_path, {"meta": meta, "rows": rows})
         write_markdown(rows, args.out, meta)
     scaling = seed_scaling(rows)
     for r in rows:

@@ -95,7 +95,7 @@ def bench(name, factory, seeds, capacity, cycles, repeats):
 def record(path: str, rows: list[dict]) -> None:
     """Adds ``rows`` to the JSON record at ``path`` (atomically), replacing rows of the same buffer,
     seeds, capacity and date."""
-    from metapg_jax import reporting
+    from metapg_jax.host import runfiles
 
     old = []
     if os.path.exists(path):
@@ -103,7 +103,7 @@ def record(path: str, rows: list[dict]) -> None:
             old = json.load(f)["rows"]
     key = lambda r: (r["buffer"], r["seeds"], r["capacity"], r["measured"])
     new = {key(r) for r in rows}
-    reporting.write_json_atomic(path, {"rows": [r for r in old if key(r) not in new] + rows})
+    runfiles.write_json_atomic(path, {"rows": [r for r in old if key(r) not in new] + rows})
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -119,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error("--seeds, --cycles and --repeats must be positive")
     if a.capacity < 100:
         p.error(f"--capacity must hold one cycle's 100 added transitions, got {a.capacity}")
-    from metapg_jax import compile_cache
+    from metapg_jax.host import compile_cache
 
     compile_cache.enable(None)  # cold compile times, whatever JAX_COMPILATION_CACHE_DIR says
     where = {"measured": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),

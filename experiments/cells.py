@@ -16,7 +16,7 @@ import numpy as np
 
 from experiments.grid import BASELINE, META, METHODS, TASKS
 from experiments.stats import final_returns
-from metapg_jax import reporting
+from metapg_jax.host import metric_rows, provenance, runfiles
 
 # ---------------------------------------------------------------------------------------------- loading
 
@@ -41,7 +41,7 @@ class RunResult:
     provenance: dict          # reproduce.json ({} for runs not started by experiments.reproduce)
     steps: np.ndarray         # (T,) env steps of the evaluations
     values: np.ndarray        # (seeds, T) evaluation returns
-    train_seconds: float | None = None  # training time over all calls, from metrics.jsonl (reporting.training_seconds)
+    train_seconds: float | None = None  # training time over all calls, from metrics.jsonl (metric_rows.training_seconds)
     train_seconds_exact: bool = False
     behaviour: dict = dataclasses.field(default_factory=dict)  # BEHAVIOUR_METRICS key -> (seeds, T), where logged
 
@@ -68,12 +68,12 @@ def load_run(path: str, task: str = "", method: str = "") -> RunResult | None:
         return None
     with open(cfg_path) as f:
         stored = json.load(f)
-    rows = reporting.read_jsonl(metrics_path)
+    rows = runfiles.read_jsonl(metrics_path)
     if not rows:
         return None
-    steps, values = reporting.curves(rows)
-    behaviour = {k: np.asarray(reporting.curves(rows, k)[1], np.float64) for k in BEHAVIOUR_METRICS if k in rows[0]}
-    train_s, exact = reporting.training_seconds(rows)
+    steps, values = metric_rows.curves(rows)
+    behaviour = {k: np.asarray(metric_rows.curves(rows, k)[1], np.float64) for k in BEHAVIOUR_METRICS if k in rows[0]}
+    train_s, exact = metric_rows.training_seconds(rows)
     summary = read_json(os.path.join(path, "summary.json"))
     info = {k: v for k, v in stored.items() if k not in ("config", "run_args")}
     return RunResult(task=task or stored["config"]["env"]["name"], method=method, path=path,
@@ -175,7 +175,7 @@ def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = 
     if method in (META, baseline) and os.path.exists(visits):
         with np.load(visits) as v:
             thinned = thin_visits(dict(v))
-        reporting.savez_atomic(os.path.join(archive_path, "visits.npz"), thinned)
+        runfiles.savez_atomic(os.path.join(archive_path, "visits.npz"), thinned)
     return True
 
 
@@ -317,4 +317,4 @@ def provenance_footer(build: dict, cells: Iterable[RunResult]) -> str:
 def build_info(runs_dir: str) -> dict:
     """This build's provenance: local time, ``runs_dir``, commit, dirty flag and machine."""
     return {"built": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
-            "runs_dir": runs_dir, **reporting.provenance()}
+            "runs_dir": runs_dir, **provenance.record()}

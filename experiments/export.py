@@ -47,8 +47,8 @@ def main(argv: list[str] | None = None) -> int:
     import jax
 
     from metapg_jax import config as config_lib
-    from metapg_jax.checkpoint import Checkpointer, saved_steps
-    from metapg_jax.policy import export_policies
+    from metapg_jax.host.checkpoint import Checkpointer, saved_steps
+    from metapg_jax.host.policy import export_policies
     from metapg_jax.loop import checkpoint_shapes
     from metapg_jax.train import make_train, seed_keys
 
@@ -90,7 +90,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"seed {seed['seed']}: gymnasium {seed['replay_mean']:,.1f} over {args.replay} episodes, "
                   f"in-training evaluation {seed['training_eval']:,.1f}")
         if args.report:
-            from metapg_jax.reporting import write_json_atomic
+            from metapg_jax.host.runfiles import write_json_atomic
 
             write_json_atomic(args.report, report)
             print(f"wrote {args.report}")
@@ -104,7 +104,7 @@ def replay_in_gymnasium(policy_path: str, gym_id: str, seed: int, episodes: int)
     import numpy as np
 
     from envs.gym_mujoco import without_the_settotalmass_warning
-    from metapg_jax.policy import load_policy
+    from metapg_jax.host.policy import load_policy
 
     act = load_policy(policy_path, seed=seed)
     with without_the_settotalmass_warning():
@@ -134,10 +134,10 @@ def replay_report(policy_path: str, cfg, run_dir: str, chunks_done: int, episode
     import numpy as np
 
     from envs import get_spec
-    from metapg_jax import reporting
+    from metapg_jax.host import provenance, runfiles
 
     gym_id = get_spec(cfg.env.name).gym_id
-    rows = [r for r in reporting.read_jsonl(os.path.join(run_dir, "metrics.jsonl")) if r["chunk"] == chunks_done - 1]
+    rows = [r for r in runfiles.read_jsonl(os.path.join(run_dir, "metrics.jsonl")) if r["chunk"] == chunks_done - 1]
     training = {int(r["seed"]): float(r["eval_return"]) for r in rows}
     with open(os.path.join(run_dir, "config.json")) as f:
         stored = json.load(f)
@@ -150,7 +150,7 @@ def replay_report(policy_path: str, cfg, run_dir: str, chunks_done: int, episode
     return {"gym_id": gym_id, "episodes": episodes, "chunks_done": chunks_done, "command": command,
             "run": {k: stored.get(k) for k in ("run_args", "commit", "dirty")} | {"physics": cfg.env.physics},
             "training_eval_episodes": cfg.run.eval_episodes,
-            "replayed": {"date": datetime.date.today().isoformat(), **reporting.provenance()}, "seeds": seeds}
+            "replayed": {"date": datetime.date.today().isoformat(), **provenance.record()}, "seeds": seeds}
 
 
 if __name__ == "__main__":

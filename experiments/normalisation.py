@@ -97,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
 
-    from metapg_jax.reporting import provenance, write_json_atomic
+    from metapg_jax.host.provenance import record as provenance
+    from metapg_jax.host.runfiles import write_json_atomic
 
     anchors = {}
     for task in tasks:

@@ -136,7 +136,7 @@ def cell_state(path: str) -> str:
     or 'new'."""
     if os.path.exists(os.path.join(path, "summary.json")):
         return "done"
-    from metapg_jax.checkpoint import saved_steps
+    from metapg_jax.host.checkpoint import saved_steps
 
     if saved_steps(os.path.join(path, "checkpoints")):
         return "resume"
@@ -210,12 +210,12 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
     started from a tree with uncommitted code changes stores them (``diff``, taken when it started) beside the
     record as ``uncommitted-<call>.diff``, named in its call entry, and archived with the cell.
 
-    ``started`` is ``reporting.provenance()`` taken when the call began (the code that ran, even if
+    ``started`` is ``provenance.record()`` taken when the call began (the code that ran, even if
     the checkout changed while it ran); every call (a resume is one) keeps its own commit, and the
     top-level ``commit`` is the one the cell was started at (its config.json's, also when the first call was
     killed before it could write this record; ``wall_seconds`` then counts the recorded calls only; the
     results manifest's ``train_seconds_all_calls`` adds up every call's training from the metrics rows)."""
-    from metapg_jax import reporting
+    from metapg_jax.host import runfiles
 
     path = os.path.join(out, "reproduce.json")
     calls = read_json(path).get("calls", [])
@@ -232,7 +232,7 @@ def _write_cell_record(out: str, argv: list[str], status: int, seconds: float, s
     first = ({"commit": cfg["commit"], "dirty": cfg.get("dirty", calls[0].get("dirty"))} if cfg.get("commit") else
              {"commit": calls[0].get("commit", started["commit"]), "dirty": calls[0].get("dirty", started["dirty"])})
     commits = {c["commit"] for c in calls if c.get("commit")} | {first["commit"]}
-    reporting.write_json_atomic(path, {
+    runfiles.write_json_atomic(path, {
         **started, **first, "commits": sorted(c for c in commits if c),
         "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 2), "calls": calls})
 
@@ -252,7 +252,7 @@ def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[st
         with open(os.path.join(out, "summary.json")) as f:
             s = json.load(f)
         stored_every = wanted_every = None
-        from metapg_jax.checkpoint import saved_steps
+        from metapg_jax.host.checkpoint import saved_steps
 
         if s["env_steps"] < wanted and out != archived and saved_steps(os.path.join(out, "checkpoints")):
             stored_every = read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
@@ -275,10 +275,10 @@ def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[st
         else:
             note = f" (stored budget {s['env_steps']:,} is above the requested {wanted:,}; delete it to rerun)"
         from experiments import stats
-        from metapg_jax import reporting
+        from metapg_jax.host import metric_rows, runfiles
 
         # From the metrics (the tables' definition), also for a cell stored before summary.json had it.
-        final = stats.run_summary(*reporting.curves(reporting.read_jsonl(os.path.join(out, "metrics.jsonl"))))
+        final = stats.run_summary(*metric_rows.curves(runfiles.read_jsonl(os.path.join(out, "metrics.jsonl"))))
         message = f"done, skipped: {stats.describe_final(final)}, {s['env_steps']:,} steps{note}"
         return {"state": state, "out": out, "archived": archived, "argv": None, "message": message}
     argv = cell_argv(args, task, method, out, state, options)
@@ -292,11 +292,11 @@ def run_cell(args: argparse.Namespace, task: str, method: str, plan: dict) -> in
     """Runs a planned cell (``experiments.run.main``), records it in ``reproduce.json`` and archives it when
     it finished; returns the run's exit status. Called in this process, or in a Ray worker."""
     from experiments import run as run_lib
-    from metapg_jax import reporting
+    from metapg_jax.host import provenance
 
     out, argv = plan["out"], plan["argv"]
-    started, t0 = reporting.provenance(), time.perf_counter()
-    diff = reporting.uncommitted_diff() if started["dirty"] else ""
+    started, t0 = provenance.record(), time.perf_counter()
+    diff = provenance.uncommitted_diff() if started["dirty"] else ""
     try:
         code = run_lib.main(argv)
     except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed (e.g. while compiling)
@@ -439,9 +439,9 @@ def main(argv: list[str] | None = None) -> int:
         if args.ray_cpus_per_cell < 0 or args.ray_gpus_per_cell < 0 or args.ray_retries < 0:
             raise ValueError("--ray-cpus-per-cell, --ray-gpus-per-cell and --ray-retries must be >= 0")
         if args.tensorboard and not args.artefacts_only:
-            from metapg_jax import reporting
+            from metapg_jax.host import tb_events
 
-            reporting.require_tensorboard()
+            tb_events.require_tensorboard()
         if not args.artefacts_only:
             # Every cell's config before the first one trains: a budget that one method's cycle does not
             # divide, or a bad --set, stops the grid here rather than after the cells before it have run.

@@ -51,7 +51,7 @@ import sys
 import time
 
 import envs
-from metapg_jax import compile_cache
+from metapg_jax.host import compile_cache
 from metapg_jax import config as config_lib
 
 TEACHER_CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_log_std",
@@ -115,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--compile-cache", default=None, metavar="DIR|off",
                    help="keep compiled programs on disk for the next run or resume (default: "
                         "$JAX_COMPILATION_CACHE_DIR, else ~/.cache/metapg-jax/xla; 'off' compiles afresh; "
-                        "see metapg_jax/compile_cache.py)")
+                        "see metapg_jax/host/compile_cache.py)")
     p.add_argument("--debug-nans", action="store_true", help="turn on jax_debug_nans (slow; for hunting NaNs)")
     p.add_argument("--no-plot", action="store_true", help="skip the PNG plots")
     p.add_argument("--tensorboard", action="store_true",
@@ -294,9 +294,9 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
     if args.checkpoint_every < 0 or not args.checkpoint_minutes > 0:
         raise ValueError("--checkpoint-every must be >= 0 and --checkpoint-minutes > 0")
     if args.tensorboard:
-        from metapg_jax import reporting
+        from metapg_jax.host import tb_events
 
-        reporting.require_tensorboard()
+        tb_events.require_tensorboard()
     if args.resume:
         out = args.resume
         path = os.path.join(out, "config.json")
@@ -340,7 +340,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
                 "the options given change the stored run"
             hint = " (pass the stored value with --set)" if extend_from else ""
             raise ValueError(f"--resume {out}: {what}: {'; '.join(differences)}{hint}")
-        from metapg_jax.checkpoint import saved_steps
+        from metapg_jax.host.checkpoint import saved_steps
 
         if not saved_steps(os.path.join(out, "checkpoints")):
             raise ValueError(f"--resume {out}: no checkpoint under {out}/checkpoints; nothing to resume from")
@@ -517,7 +517,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
                         checkpoint_every=checkpoint_every, checkpoint_minutes=checkpoint_minutes,
                         extend_from=extend_from, tensorboard=tensorboard, trainer=trainer)
         except Stopped as stop:  # while compiling or in the loop (_run has closed its files and progress bar)
-            from metapg_jax.checkpoint import saved_steps
+            from metapg_jax.host.checkpoint import saved_steps
 
             done = saved_steps(os.path.join(out, "checkpoints"))
             print("\n" + stop_message(stop, "the run", signals.in_flight, cfg.num_chunks, done[-1] if done else None,
@@ -533,9 +533,11 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
     import numpy as np
     from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-    from metapg_jax import reporting, replay
-    from metapg_jax.checkpoint import Checkpointer
-    from metapg_jax.loop import SEED_AXIS, checkpoint_shapes
+    from metapg_jax import replay
+    from metapg_jax.host import metric_rows, provenance, runfiles, tb_events, terminal
+    from metapg_jax.host.checkpoint import Checkpointer
+    from metapg_jax.loop import checkpoint_shapes
+    from metapg_jax.seeds import SEED_AXIS
     from metapg_jax.train import make_train, seed_keys, vmap_seeds
 
     num_seeds, seed = a["seeds"], a["seed"]
@@ -545,10 +547,10 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
             shutil.rmtree(out)
         os.makedirs(out, exist_ok=True)
         if main_process:
-            reporting.write_json_atomic(os.path.join(out, "config.json"), {
+            runfiles.write_json_atomic(os.path.join(out, "config.json"), {
                 "config": config_lib.to_dict(cfg), "run_args": a,
                 "jax_version": jax.__version__, "backend": jax.default_backend(),
-                "devices": [str(d) for d in jax.devices()], **reporting.provenance()})
+                "devices": [str(d) for d in jax.devices()], **provenance.record()})
     elif extend_from is not None and main_process:
         _record_extension(out, cfg, a, extend_from)
     _barrier("metapg-run-folder")  # process 0 has (re)made the folder before anyone writes into it
@@ -581,8 +583,8 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
         start = int(meta["chunks_done"])
         first_cycle = start * cfg.cycles_per_chunk
         if main_process:  # the files are process 0's
-            reporting.truncate_jsonl(os.path.join(out, "metrics.jsonl"), lambda r: r["chunk"] < start)
-            reporting.truncate_jsonl(os.path.join(out, "cycles.jsonl"), lambda r: r["cycle"] < first_cycle)
+            runfiles.truncate_jsonl(os.path.join(out, "metrics.jsonl"), lambda r: r["chunk"] < start)
+            runfiles.truncate_jsonl(os.path.join(out, "cycles.jsonl"), lambda r: r["cycle"] < first_cycle)
         print(f"resumed after {start} of {cfg.num_chunks} chunks ({start * cfg.run.eval_every:,} env steps)",
               flush=True)
     else:
@@ -597,18 +599,18 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
     def ckpt_meta():
         return {"config": config_lib.to_dict(cfg), "run_args": a}
 
-    metrics_writer = reporting.JsonlWriter(os.path.join(out, "metrics.jsonl")) if main_process else None
-    cycle_writer = (reporting.JsonlWriter(os.path.join(out, "cycles.jsonl"))
+    metrics_writer = runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl")) if main_process else None
+    cycle_writer = (runfiles.JsonlWriter(os.path.join(out, "cycles.jsonl"))
                     if cfg.run.method == "meta" and main_process else None)
     tb_writer = None
     if tensorboard and main_process:
-        tb_writer = reporting.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle)
+        tb_writer = tb_events.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle)
         if resume:  # the JSONL files end at the checkpoint now (truncated above)
             cycles_path = os.path.join(out, "cycles.jsonl")
-            tb_writer.resume(reporting.read_jsonl(os.path.join(out, "metrics.jsonl")),
-                             reporting.read_jsonl(cycles_path) if os.path.exists(cycles_path) else [],
+            tb_writer.resume(runfiles.read_jsonl(os.path.join(out, "metrics.jsonl")),
+                             runfiles.read_jsonl(cycles_path) if os.path.exists(cycles_path) else [],
                              start * cfg.run.eval_every)
-    progress = reporting.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet or not main_process,
+    progress = terminal.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet or not main_process,
                                   initial=start * cfg.run.eval_every)  # rates: this call's steps only
     last_ckpt = time.perf_counter()
     t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
@@ -631,12 +633,12 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
                 break
             if main_process:
                 now = time.perf_counter()
-                rows = reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
+                rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
                 metrics_writer.write(rows)
                 t_chunk = now
                 cycles = []
                 if cycle_writer is not None:
-                    cycles = reporting.cycle_rows(metrics, TEACHER_CYCLE_METRICS, chunk * cfg.cycles_per_chunk)
+                    cycles = metric_rows.cycle_rows(metrics, TEACHER_CYCLE_METRICS, chunk * cfg.cycles_per_chunk)
                     cycle_writer.write(cycles)
                 if tb_writer is not None:
                     tb_writer.write(rows, cycles)
@@ -671,7 +673,7 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
         "compile_seconds": round(compile_s, 2), **cache_record,
         "train_seconds": round(train_s, 2),
         "env_steps_per_second_total": round(num_seeds * chunks_run * cfg.run.eval_every / max(train_s, 1e-9), 1),
-        "replay_mib": round(buffer_mb, 1), "peak_rss_mib": round(_peak_rss_mib(), 1),
+        "replay_mib": round(buffer_mb, 1), "peak_rss_mib": round(terminal.peak_rss_mib(), 1),
         "devices": jax.device_count(), "backend": jax.default_backend(), "resumed_from_chunk": start,
         **({"extended_from_steps": extend_from} if extend_from else {})})
     return 0
@@ -680,7 +682,7 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
 def _record_extension(out: str, cfg: config_lib.Config, a: dict, old_steps: int) -> None:
     """Before an extension runs: config.json gets the new budget (so a plain ``--resume`` continues the
     extension) and an ``extensions`` entry; the shorter run's summary is kept as ``summary_<steps>.json``."""
-    from metapg_jax import reporting
+    from metapg_jax.host import provenance, runfiles
 
     path = os.path.join(out, "config.json")
     with open(path) as f:
@@ -689,34 +691,34 @@ def _record_extension(out: str, cfg: config_lib.Config, a: dict, old_steps: int)
     if os.path.exists(summary):
         os.replace(summary, os.path.join(out, f"summary_{old_steps}.json"))
     entry = {"from_steps": old_steps, "to_steps": cfg.run.total_steps,
-             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **reporting.provenance()}
-    reporting.write_json_atomic(path, {**stored, "config": config_lib.to_dict(cfg), "run_args": a,
+             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **provenance.record()}
+    runfiles.write_json_atomic(path, {**stored, "config": config_lib.to_dict(cfg), "run_args": a,
                                        "extensions": stored.get("extensions", []) + [entry]})
 
 
 def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool = True, extra: dict | None = None):
     """Summary, plots, the exported policies and the visited-state sample, from a finished state."""
-    from metapg_jax import reporting
-    from metapg_jax.policy import export_policies
+    from metapg_jax.host import metric_rows, runfiles
+    from metapg_jax.host.policy import export_policies
 
     from experiments import stats
 
-    rows = reporting.read_jsonl(os.path.join(out, "metrics.jsonl"))
-    summary = stats.run_summary(*reporting.curves(rows))
+    rows = runfiles.read_jsonl(os.path.join(out, "metrics.jsonl"))
+    summary = stats.run_summary(*metric_rows.curves(rows))
     summary.update({"method": cfg.run.method, "env": cfg.env.name, "preset": cfg.preset, "source": cfg.env.source,
                     "physics": cfg.env.physics,
                     **(extra or {})})
-    reporting.write_json_atomic(os.path.join(out, "summary.json"), summary)
+    runfiles.write_json_atomic(os.path.join(out, "summary.json"), summary)
     export_policies(os.path.join(out, "policy.npz"), cfg, state.student.actor, state.normalizer)
     _save_visits(os.path.join(out, "visits.npz"), state.visits)
     name = run_label(cfg)
     if plot:
         title = f"{name}, {cfg.preset} preset: {num_seeds} seeds"
-        reporting.plot_learning_curve(rows, os.path.join(out, "learning_curve.png"), title)
+        metric_rows.plot_learning_curve(rows, os.path.join(out, "learning_curve.png"), title)
         if cfg.run.method == "meta":
             from experiments.plots import plot_teacher
 
-            plot_teacher(reporting.read_jsonl(os.path.join(out, "cycles.jsonl")),
+            plot_teacher(runfiles.read_jsonl(os.path.join(out, "cycles.jsonl")),
                          os.path.join(out, "teacher.png"), title)
     for i, (v, last) in enumerate(zip(summary["final_return_per_seed"], summary["last_eval_return_per_seed"])):
         print(f"seed {i}: final return {stats.fmt(v, 1)} (last evaluation {stats.fmt(last, 1)})")
@@ -769,15 +771,9 @@ def _save_visits(path: str, visits) -> None:
 
     import numpy as np
 
-    from metapg_jax.reporting import savez_atomic
+    from metapg_jax.host.runfiles import savez_atomic
 
     savez_atomic(path, {f.name: np.asarray(getattr(visits, f.name)) for f in dataclasses.fields(visits)})
-
-
-def _peak_rss_mib() -> float:
-    import resource
-
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 
 
 if __name__ == "__main__":

@@ -369,7 +369,7 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
     .json, performance_profiles.png: the variants finished on every task, normalised with ``anchors_path``,
     default results/normalisation.json) and per task ``experiments.ablation``'s report."""
     from experiments import aggregate, normalisation
-    from metapg_jax import reporting
+    from metapg_jax.host import runfiles
 
     anchors_path = normalisation.DEFAULT_OUT if anchors_path is None else anchors_path
     anchors = normalisation.load(anchors_path) if os.path.exists(anchors_path) else None
@@ -394,7 +394,7 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
     md = os.path.join(results_dir, "README.md")
     with open(md, "w") as f:
         f.write(markdown(by_task, upto, seeds, build, physics, judged))
-    reporting.write_json_atomic(os.path.join(results_dir, "screen.json"), summary)
+    runfiles.write_json_atomic(os.path.join(results_dir, "screen.json"), summary)
     # A variant with no cell of its own on a task stands for the cell it equals there (its change is the task's
     # preset: the paper teacher's; or the same config as an earlier variant's), as the tables say.
     finished = {task: {r["name"]: r["finals"] for r in rows} for task, (rows, _) in by_task.items()}

@@ -53,7 +53,7 @@ def run_summary(steps: np.ndarray, values: np.ndarray) -> dict:
     (``FINAL_DEFINITION``; mean ± sample std over seeds, as ``mean_std``), from the evaluation returns
     ``values`` (seeds, T) at env steps ``steps`` (T,). The last evaluation alone is kept under
     ``last_eval_return_*``."""
-    from metapg_jax.reporting import json_number
+    from metapg_jax.host.runfiles import json_number
 
     values = np.asarray(values, np.float64)
     final = final_returns(values)

@@ -39,7 +39,7 @@ import time
 
 import envs
 from experiments import run as run_lib
-from metapg_jax import compile_cache
+from metapg_jax.host import compile_cache
 
 SWEEP_ARGS = ("env", "method", "teacher", "student", "preset", "noise", "seeds", "seed", "steps", "source",
               "physics", "overrides", "plugins")
@@ -140,7 +140,7 @@ def check_fits(a: dict, configs, groups, env) -> None:
     would not fit in memory; groups run one after another. From shapes alone: nothing compiles."""
     import jax
 
-    from metapg_jax.loop import vmap_seeds
+    from metapg_jax.seeds import vmap_seeds
     from metapg_jax.sweep import Sweep
 
     largest, label = 0, ""
@@ -198,19 +198,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     compile_cache.enable(cache)
-    from metapg_jax import reporting
+    from metapg_jax.host import provenance, runfiles
     from metapg_jax.config import to_dict
 
     if not args.resume:
         if args.overwrite and os.path.exists(out):
             shutil.rmtree(out)
         os.makedirs(out, exist_ok=True)
-        reporting.write_json_atomic(os.path.join(out, "sweep.json"), {
+        runfiles.write_json_atomic(os.path.join(out, "sweep.json"), {
             "run_args": a, "grid": grid,
             "settings": [{"setting": k, "values": s, "group": next(g for g, grp in enumerate(groups)
                                                                   if k in grp["settings"])}
                          for k, s in enumerate(settings)],
-            "groups": groups, "config": to_dict(configs[0]), **reporting.provenance()})
+            "groups": groups, "config": to_dict(configs[0]), **provenance.record()})
     n = len(settings) * a["seeds"]
     print(f"sweep of {len(settings)} settings x {a['seeds']} seeds = {n} runs of {run_lib.run_label(configs[0])} "
           f"({configs[0].run.total_steps:,} env steps each) in {len(groups)} program(s); output {out}", flush=True)
@@ -230,9 +230,9 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
     import jax.numpy as jnp
     import numpy as np
 
-    from metapg_jax import reporting
-    from metapg_jax.checkpoint import Checkpointer
-    from metapg_jax.loop import seed_keys, vmap_seeds
+    from metapg_jax.host import metric_rows, runfiles, terminal
+    from metapg_jax.host.checkpoint import Checkpointer
+    from metapg_jax.seeds import seed_keys, vmap_seeds
     from metapg_jax.sweep import Sweep
 
     members, num_seeds = group["settings"], a["seeds"]
@@ -254,14 +254,14 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
     if start:
         state, _ = checkpointer.restore(jax.eval_shape(init_fn, keys, values))
         metrics_path = os.path.join(out, "metrics.jsonl")
-        reporting.truncate_jsonl(metrics_path, lambda r: r["setting"] not in members or r["chunk"] < start)
+        runfiles.truncate_jsonl(metrics_path, lambda r: r["setting"] not in members or r["chunk"] < start)
     else:
         state = init_fn(keys, values)
     chunk_fn = jax.jit(vmap_seeds(sweep.train_chunk), donate_argnums=0).lower(state, values).compile()
     print(f"{label}: {len(members)} x {num_seeds} runs, compiled in {time.perf_counter() - t0:.1f} s"
           + (f", resumed after {start} of {cfg.num_chunks} chunks" if start else ""), flush=True)
-    writer = reporting.JsonlWriter(os.path.join(out, "metrics.jsonl"))
-    progress = reporting.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
+    writer = runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl"))
+    progress = terminal.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
                                   disable=args.quiet, initial=start * cfg.run.eval_every)
     last_ckpt = t_train = t_chunk = time.perf_counter()
     chunk = start
@@ -271,7 +271,7 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
                 state, metrics = chunk_fn(state, values)
                 metrics = jax.device_get(signals.wait(metrics))
                 now = time.perf_counter()
-                rows = reporting.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
+                rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
                 t_chunk = now
                 finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
                 for i, row in enumerate(rows):
@@ -313,9 +313,9 @@ def summary_rows(out: str, settings, configs) -> list[dict]:
     import numpy as np
 
     from experiments.stats import final_returns, mean_std, t_interval
-    from metapg_jax import reporting
+    from metapg_jax.host import runfiles
 
-    rows = reporting.read_jsonl(os.path.join(out, "metrics.jsonl"))
+    rows = runfiles.read_jsonl(os.path.join(out, "metrics.jsonl"))
     result = []
     for k, s in enumerate(settings):
         mine = [r for r in rows if r["setting"] == k]
@@ -343,7 +343,7 @@ def summary_rows(out: str, settings, configs) -> list[dict]:
 
 def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
     from experiments.stats import FINAL_DEFINITION, fmt
-    from metapg_jax import reporting
+    from metapg_jax.host import runfiles
 
     rows = summary_rows(out, settings, configs)
     fields = list(settings[0])
@@ -361,7 +361,7 @@ def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
                   f" | {final} | {ci} | {e['seeds']} | {note} |")
     with open(os.path.join(out, "summary.md"), "w") as f:
         f.write("\n".join(md) + "\n")
-    reporting.write_json_atomic(os.path.join(out, "summary.json"), {"final_definition": FINAL_DEFINITION,
+    runfiles.write_json_atomic(os.path.join(out, "summary.json"), {"final_definition": FINAL_DEFINITION,
                                                                     "settings": rows})
     if plot:
         _plot(out, rows, fields)

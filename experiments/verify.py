@@ -114,7 +114,7 @@ def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = No
     """Re-runs the cell's first ``chunks`` intervals at its commit, or at ``at`` (another commit, e.g. the one
     that committed the changes a dirty cell ran with; recorded as such), see the module docstring; returns
     the record written to ``<cell>/verified.json``."""
-    from metapg_jax import reporting
+    from metapg_jax.host import provenance, runfiles
 
     recorded, argv, eval_every = cell_command(cell)
     commit = recorded if at is None else subprocess.run(["git", "rev-parse", at], cwd=ROOT, capture_output=True,
@@ -132,16 +132,16 @@ def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = No
         if proc.returncode != 0:
             raise RuntimeError(f"the run at {commit[:7]} exited {proc.returncode}: "
                                + (proc.stderr.strip().splitlines() or ["(no output)"])[-1])
-        result = compare(reporting.read_jsonl(os.path.join(cell, "metrics.jsonl")),
-                         reporting.read_jsonl(os.path.join(out, "metrics.jsonl")), chunks, rtol)
+        result = compare(runfiles.read_jsonl(os.path.join(cell, "metrics.jsonl")),
+                         runfiles.read_jsonl(os.path.join(out, "metrics.jsonl")), chunks, rtol)
     finally:
         subprocess.run(["git", "worktree", "remove", "--force", src], cwd=ROOT, capture_output=True)
         if keep is None:
             shutil.rmtree(work, ignore_errors=True)
     record = {"commit": commit, **({} if commit == recorded else {"recorded_commit": recorded}), "command": ["python", "-m", "experiments.run", *argv[:-2], "--out", "<tmp>"],
               "chunks": chunks, "env_steps": chunks * eval_every, "rtol": rtol, **result,
-              "checked": {"date": datetime.date.today().isoformat(), **reporting.provenance()}}
-    reporting.write_json_atomic(os.path.join(cell, RESULT), record)
+              "checked": {"date": datetime.date.today().isoformat(), **provenance.record()}}
+    runfiles.write_json_atomic(os.path.join(cell, RESULT), record)
     return record
 
 

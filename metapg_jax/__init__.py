@@ -23,6 +23,14 @@ def _default_to_deterministic_gpu_ops() -> None:
 
 _default_to_deterministic_gpu_ops()
 
-from metapg_jax.policy import load_policy  # noqa: E402
-
 __all__ = ["load_policy"]
+
+
+def __getattr__(name: str):
+    """``metapg_jax.load_policy`` (``metapg_jax.host.policy``), imported on first use: the package itself
+    stays free of the host side (``metapg_jax.host``), which reads files."""
+    if name == "load_policy":
+        from metapg_jax.host.policy import load_policy
+
+        return load_policy
+    raise AttributeError(f"module 'metapg_jax' has no attribute {name!r}")

@@ -17,12 +17,9 @@ blocks of updates), ``random_action``, ``evaluate``. A *cycle* is the explorer's
 Algorithm 1. This module imports no explorer: ``metapg_jax.train.make_train`` puts the pieces
 together.
 
-Both paths give the same numbers for the same key. Seeds are a ``jax.vmap``
-over keys of these functions; the host (``experiments.run``) jits the vmapped
-``train_chunk`` once and calls it once per evaluation interval. Vmap with
-``vmap_seeds`` (``axis_name=SEED_AXIS``): the numbers are the same with a plain
-``jax.vmap``, but rare per-env events (a new parameter-noise perturbation at an
-episode start) are then computed at every step (see ``any_over_seeds``).
+Both paths give the same numbers for the same key. Seeds are a vmap over keys of these functions
+(``metapg_jax.seeds.vmap_seeds``); the host (``experiments.run``) jits the vmapped ``train_chunk`` once
+and calls it once per evaluation interval.
 
 The student interface (what the loop and the explorers use of a learner) is documented in
 ``metapg_jax.students``; this module imports no student either.
@@ -43,6 +40,7 @@ from metapg_jax import replay
 from metapg_jax import visits as visits_lib
 from metapg_jax.config import Config
 from metapg_jax.evaluate import evaluate
+from metapg_jax.seeds import per_seed_cond, vmap_seeds
 from metapg_jax.types import Transition
 
 
@@ -70,35 +68,6 @@ def all_finite(state: TrainState) -> jax.Array:
     if hasattr(state.explorer, "params"):
         trees.append(state.explorer.params)
     return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(trees)]))
-
-
-SEED_AXIS = "seeds"
-
-
-def vmap_seeds(fn, **kwargs):
-    """``jax.vmap`` over the seed axis, named ``SEED_AXIS`` (see ``any_over_seeds``)."""
-    return jax.vmap(fn, axis_name=SEED_AXIS, **kwargs)
-
-
-def any_over_seeds(flag: jax.Array) -> jax.Array:
-    """Whether ``flag`` holds for any seed of the batch: an unbatched predicate for ``lax.cond``.
-
-    Under ``vmap`` a ``lax.cond`` on a per-seed predicate becomes a ``select`` that computes both
-    branches for every seed at every call. ``lax.cond(any_over_seeds(p), lambda: where(p, a(), b),
-    lambda: b)`` gives the same values and runs ``a`` only when some seed needs it. Outside a
-    ``vmap_seeds`` (one seed, or a plain ``jax.vmap``) the axis is unbound and ``flag`` is returned.
-    """
-    try:
-        return jax.lax.pmax(flag.astype(jnp.int32), SEED_AXIS) > 0
-    except NameError:  # no vmap named SEED_AXIS around this trace
-        return flag
-
-
-def seed_keys(seed: int, num_seeds: int) -> jax.Array:
-    """One key per seed; seed i's key does not depend on how many seeds run."""
-    base = jax.random.PRNGKey(seed)
-    # fold_in(base, i) for i = 0..num_seeds-1, in one call (a Python loop took ~6 ms a seed).
-    return jax.vmap(lambda i: jax.random.fold_in(base, i))(jnp.arange(num_seeds, dtype=jnp.uint32))
 
 
 def flatten_time(tree):
@@ -192,14 +161,11 @@ class Trainer:
             nan = jax.tree.map(lambda m: jnp.full(m.shape, jnp.nan, m.dtype), jax.eval_shape(run, None)[3])
             return state.student, state.explorer, state.updates, nan
 
-        # A real conditional (any_over_seeds), not the per-seed select that vmap makes of a batched
+        # A real conditional (per_seed_cond), not the per-seed select that vmap makes of a batched
         # predicate: the updates are skipped during warm-up, and the minibatch gathers stay inside the
         # branch, apart from the buffer write before them. Fused with that write, they made XLA copy the
         # whole replay buffer at every cycle (the modern preset's one-step cycles ran at half speed).
-        ok = self.can_update(state)
-        student, explorer, updates, metrics = jax.lax.cond(
-            any_over_seeds(ok),
-            lambda _: jax.tree.map(lambda a, b: jnp.where(ok, a, b), run(None), skip(None)), skip, None)
+        student, explorer, updates, metrics = per_seed_cond(self.can_update(state), run, skip, None)
         return state.replace(student=student, explorer=explorer, updates=updates), metrics
 
     def cycle(self, state: TrainState) -> tuple[TrainState, dict]:

@@ -29,9 +29,10 @@ from flax import struct
 
 from metapg_jax import visits as visits_lib
 from metapg_jax.config import NoiseConfig
-from metapg_jax.loop import TrainState, Trainer, any_over_seeds
+from metapg_jax.loop import TrainState, Trainer
 from metapg_jax.networks import is_layer_norm_path
 from metapg_jax.rollout import completed_episode_mean, rollout
+from metapg_jax.seeds import per_seed_cond
 from metapg_jax.types import Params
 
 
@@ -118,12 +119,8 @@ class NoiseExplorer:
         def policy(carry, obs, first, k):
             k_reset, k_act, k_rand = jax.random.split(k, 3)
             # Episode starts are rare: the new perturbation (adaptive-param) is drawn only on steps
-            # where some seed starts an episode (any_over_seeds), and kept only for those seeds.
-            carry = jax.lax.cond(
-                any_over_seeds(first),
-                lambda: jax.tree.map(lambda new, old: jnp.where(first, new, old),
-                                     episode_start(cfg, carry, actor, k_reset), carry),
-                lambda: carry)
+            # where some seed starts an episode (per_seed_cond), and kept only for those seeds.
+            carry = per_seed_cond(first, lambda c: episode_start(cfg, c, actor, k_reset), lambda c: c, carry)
             action, carry = act(cfg, carry, learner.actor_apply, actor, learner.normalize(normalizer, obs), k_act)
             return jnp.where(warm, trainer.random_action(k_rand), action), carry, None
 

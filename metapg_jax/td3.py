@@ -28,8 +28,8 @@ from flax import struct
 
 from metapg_jax.config import TD3Config
 from metapg_jax.ddpg import ActorCritic
-from metapg_jax.loop import any_over_seeds
 from metapg_jax.networks import is_hidden_kernel_path
+from metapg_jax.seeds import per_seed_cond
 from metapg_jax.types import Params, Transition
 
 
@@ -113,10 +113,8 @@ class TD3(ActorCritic):
                              target_critic=jax.tree.map(soft, s.target_critic, s.critic))
 
         # Every seed is at the same update count, so this is one real conditional for the seed batch
-        # (any_over_seeds), not a select that computes the actor's update at every step.
+        # (per_seed_cond), not a select that computes the actor's update at every step.
         due = state.step % self.td3.policy_delay == 0
-        state = jax.lax.cond(any_over_seeds(due),
-                             lambda s: jax.tree.map(lambda new, old: jnp.where(due, new, old), delayed(s), s),
-                             lambda s: s, state)
+        state = per_seed_cond(due, delayed, lambda s: s, state)
         state = state.replace(step=state.step + 1)
         return state, {"critic_loss": c_loss, "actor_loss": state.actor_loss, **aux}

@@ -19,7 +19,8 @@ from brax.envs.base import Env
 
 from metapg_jax import explorers, students
 from metapg_jax.config import Config, validate
-from metapg_jax.loop import Trainer, seed_keys, vmap_seeds
+from metapg_jax.loop import Trainer
+from metapg_jax.seeds import seed_keys, vmap_seeds
 
 __all__ = ["make_train", "seed_keys", "vmap_seeds"]
 

@@ -33,7 +33,7 @@ def _back_to_the_session_compile_cache():
     ``experiments.run`` or ``experiments.sweep`` in-process with ``--compile-cache=off`` or a folder of its
     own leaves JAX pointed there, and every later test in that worker would compile afresh."""
     yield
-    from metapg_jax import compile_cache
+    from metapg_jax.host import compile_cache
 
     compile_cache.enable(compile_cache.resolve(None))
 

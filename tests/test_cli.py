@@ -106,12 +106,12 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     assert rows[-1]["env_steps"] == 600
     summary = json.loads((out / "summary.json").read_text())
     from experiments import stats
-    from metapg_jax import reporting
+    from metapg_jax.host import metric_rows
 
-    train_s, exact = reporting.training_seconds(rows)
+    train_s, exact = metric_rows.training_seconds(rows)
     assert exact and all(r["chunk_seconds"] > 0 for r in rows) and 0 < train_s <= summary["train_seconds"]
     # summary.json's final return is the tables' (experiments.stats) on the same metrics file.
-    finals = stats.final_returns(reporting.curves(rows)[1])
+    finals = stats.final_returns(metric_rows.curves(rows)[1])
     assert summary["final_return_per_seed"] == pytest.approx(finals.tolist())
     assert (summary["final_return_mean"], summary["final_return_std"]) == pytest.approx(stats.mean_std(finals))
     assert summary["last_eval_return_per_seed"] == pytest.approx([r["eval_return"] for r in rows[-2:]])

@@ -1,8 +1,6 @@
-"""Explorers are plug-ins: a new one is a class and a ``register`` call; the loop imports none of them."""
+"""Explorers are plug-ins: a new one is a class and a ``register`` call (the import graph: tests/test_imports.py)."""
 
-import ast
 import dataclasses
-import os
 
 import jax
 import jax.numpy as jnp
@@ -14,8 +12,6 @@ from metapg_jax.loop import TrainState, Trainer
 from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.train import make_train, seed_keys, vmap_seeds
 from tests.helpers import tiny_config
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 class UniformExplorer:
@@ -58,42 +54,3 @@ def test_an_unknown_method_is_refused_naming_the_registered_ones():
     cfg = tiny_config("ddpg")
     with pytest.raises(ValueError, match="ddpg, meta"):
         explorers.make(dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, method="nope")))
-
-
-def _imports(path):
-    """Every metapg_jax module a file imports, at the top or inside functions."""
-    out = set()
-    for node in ast.walk(ast.parse(open(path).read())):
-        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("metapg_jax"):
-            out.add(node.module)
-            out |= {f"{node.module}.{a.name}" for a in node.names}
-        elif isinstance(node, ast.Import):
-            out |= {a.name for a in node.names if a.name.startswith("metapg_jax")}
-    return out
-
-
-def test_the_package_has_no_import_cycles_and_the_loop_imports_no_explorer_or_student():
-    pkg = os.path.join(ROOT, "metapg_jax")
-    modules = {f"metapg_jax.{f[:-3]}": os.path.join(pkg, f) for f in os.listdir(pkg) if f.endswith(".py")
-               and f != "__init__.py"}
-    graph = {m: {d for d in _imports(p) if d in modules and d != m} for m, p in modules.items()}
-    assert not graph["metapg_jax.loop"] & {"metapg_jax.meta", "metapg_jax.noise", "metapg_jax.teacher",
-                                           "metapg_jax.explorers", "metapg_jax.train", "metapg_jax.students",
-                                           "metapg_jax.ddpg", "metapg_jax.td3"}
-    # Explorers use the student through its interface only (metapg_jax.students), never a student's module.
-    for explorer in ("metapg_jax.meta", "metapg_jax.noise", "metapg_jax.teacher"):
-        assert not graph[explorer] & {"metapg_jax.ddpg", "metapg_jax.td3", "metapg_jax.students"}, explorer
-
-    state = {}
-
-    def visit(m, path):
-        if state.get(m) == "done":
-            return
-        assert state.get(m) != "open", "import cycle: " + " -> ".join(path + [m])
-        state[m] = "open"
-        for d in sorted(graph[m]):
-            visit(d, path + [m])
-        state[m] = "done"
-
-    for m in sorted(graph):
-        visit(m, [])

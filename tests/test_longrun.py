@@ -14,7 +14,7 @@ import pytest
 
 from experiments import run
 from metapg_jax import load_policy
-from metapg_jax.checkpoint import Checkpointer
+from metapg_jax.host.checkpoint import Checkpointer
 from tests import xla_flags
 from tests.helpers import TINY_BUFFER, TINY_RUN
 
@@ -107,7 +107,7 @@ def test_a_run_loaded_from_the_compile_cache_equals_a_compiled_one(reference, tm
 
 
 def test_compile_cache_folder_choice(tmp_path, monkeypatch):
-    from metapg_jax import compile_cache
+    from metapg_jax.host import compile_cache
 
     monkeypatch.setattr(compile_cache, "DEFAULT_DIR", str(tmp_path / "default"))
     monkeypatch.delenv("JAX_COMPILATION_CACHE_DIR", raising=False)
@@ -296,7 +296,7 @@ def test_seed_results_do_not_depend_on_the_device_count(tmp_path, monkeypatch, c
 
 def test_nan_guard_names_the_seed_and_stops(tmp_path, capsys):
     """Also: ``--compile-cache off`` compiles without the persistent cache, and says so."""
-    from metapg_jax import compile_cache
+    from metapg_jax.host import compile_cache
 
     out = str(tmp_path / "nan")
     code = run.main(TINY + ["--steps=900", "--out", out, "--set", "ddpg.critic_lr=1e30", "--set", "ddpg.actor_lr=1e30",
@@ -419,9 +419,9 @@ def test_checkpoint_round_trips_mjx_states_with_zero_size_arrays(tmp_path):
 def test_progress_after_a_resume_counts_this_calls_steps_only():
     """A resumed run's bar starts at the steps already done, and its rates count only what this call
     trains (it once showed 1e9 steps/s on its first update and twice the true rate after)."""
-    from metapg_jax import reporting
+    from metapg_jax.host import terminal
 
-    bar = reporting.Progress(1_500_000, 8, "resumed", initial=270_000)
+    bar = terminal.Progress(1_500_000, 8, "resumed", initial=270_000)
     time.sleep(0.2)
     bar.update(285_000, np.zeros(8))
     elapsed = time.perf_counter() - bar.start

@@ -114,7 +114,7 @@ def fabricated(tmp_path_factory):
 
 
 def test_training_seconds_add_up_every_call():
-    from metapg_jax import reporting
+    from metapg_jax.host import metric_rows
 
     def rows(walls, chunk_seconds=None, seeds=2):
         return [{"seed": s, "chunk": c, "wall_time": w, **({} if chunk_seconds is None else
@@ -122,11 +122,11 @@ def test_training_seconds_add_up_every_call():
                 for c, w in enumerate(walls) for s in range(seeds)]
 
     # older rows (wall_time only): a call of 3 chunks, killed, resumed for 2 (its clock restarts at 0)
-    assert reporting.training_seconds(rows([10.0, 20.0, 30.0, 5.0, 15.0])) == (45.0, False)
+    assert metric_rows.training_seconds(rows([10.0, 20.0, 30.0, 5.0, 15.0])) == (45.0, False)
     # rows with chunk_seconds add up exactly, also where the clock restart is invisible in wall_time
     exact = rows([10.0, 40.0, 50.0], chunk_seconds=[10.0, 40.0, 10.0])
-    assert reporting.training_seconds(exact) == (60.0, True)
-    assert reporting.training_seconds([{"seed": 0, "chunk": 0}]) == (None, False)
+    assert metric_rows.training_seconds(exact) == (60.0, True)
+    assert metric_rows.training_seconds([{"seed": 0, "chunk": 0}]) == (None, False)
 
 
 def test_table2_numbers_match_hand_computation(fabricated):
@@ -688,7 +688,7 @@ def test_tensorboard_is_passed_to_every_cell_and_needs_its_extra(monkeypatch, tm
 def test_provenance_is_dirty_for_code_changes_not_for_rewritten_results(tmp_path):
     import subprocess
 
-    from metapg_jax import reporting
+    from metapg_jax.host import provenance
 
     repo = tmp_path / "repo"
     shutil.copytree(os.path.join(ROOT, "metapg_jax"), repo / "metapg_jax")
@@ -700,17 +700,17 @@ def test_provenance_is_dirty_for_code_changes_not_for_rewritten_results(tmp_path
     git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "x")
     import importlib.util
 
-    spec = importlib.util.spec_from_file_location("copied_reporting", repo / "metapg_jax" / "reporting.py")
+    spec = importlib.util.spec_from_file_location("copied_provenance", repo / "metapg_jax" / "host" / "provenance.py")
     copied = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(copied)  # its provenance() reads the copy's repository
-    assert copied.provenance()["dirty"] is False and copied.uncommitted_diff() == ""
+    spec.loader.exec_module(copied)  # its record() reads the copy's repository
+    assert copied.record()["dirty"] is False and copied.uncommitted_diff() == ""
     (repo / "results" / "table.md").write_text("b\n")  # an output rewritten between cells
-    assert copied.provenance()["dirty"] is False
-    (repo / "metapg_jax" / "reporting.py").write_text((repo / "metapg_jax" / "reporting.py").read_text() + "\n")
-    assert copied.provenance()["dirty"] is True
+    assert copied.record()["dirty"] is False
+    (repo / "metapg_jax" / "host" / "provenance.py").write_text((repo / "metapg_jax" / "host" / "provenance.py").read_text() + "\n")
+    assert copied.record()["dirty"] is True
     diff = copied.uncommitted_diff()  # the code change, not the rewritten output
-    assert "metapg_jax/reporting.py" in diff and "table.md" not in diff
-    assert reporting.provenance()["commit"] != copied.provenance()["commit"]
+    assert "metapg_jax/host/provenance.py" in diff and "table.md" not in diff
+    assert provenance.record()["commit"] != copied.record()["commit"]
 
 
 def test_a_call_from_a_dirty_tree_stores_its_diff_and_the_tables_count_it(tmp_path):

@@ -11,7 +11,7 @@ import pytest
 
 import envs
 from experiments import run, sweep
-from metapg_jax import reporting
+from metapg_jax.host import runfiles
 from metapg_jax.sweep import structural_fields
 from tests.helpers import tiny_config
 
@@ -27,7 +27,7 @@ GRID = ["--grid", "meta.lr=1e-4,1e-2", "--grid", "ddpg.tau=0.01,0.5"]
 
 
 def _rows(path):
-    return reporting.read_jsonl(os.path.join(path, "metrics.jsonl"))
+    return runfiles.read_jsonl(os.path.join(path, "metrics.jsonl"))
 
 
 def test_a_sweep_equals_separate_runs_of_its_settings(tmp_path):
@@ -97,7 +97,7 @@ def test_an_interrupted_sweep_resumes_to_the_numbers_of_an_uninterrupted_one(tmp
     grid = [*GRID, "--steps=900", "--no-plot"]
     whole, part = str(tmp_path / "whole"), str(tmp_path / "part")
     assert sweep.main([*TINY, *grid, "--out", whole]) == 0
-    write = reporting.JsonlWriter.write
+    write = runfiles.JsonlWriter.write
 
     def interrupt_once(self, rows):  # Ctrl-C while the first chunk's rows are written
         write(self, rows)
@@ -105,9 +105,9 @@ def test_an_interrupted_sweep_resumes_to_the_numbers_of_an_uninterrupted_one(tmp
             interrupt_once.sent = True
             os.kill(os.getpid(), signal.SIGINT)
 
-    monkeypatch.setattr(reporting.JsonlWriter, "write", interrupt_once)
+    monkeypatch.setattr(runfiles.JsonlWriter, "write", interrupt_once)
     assert sweep.main([*TINY, *grid, "--out", part]) == 130
-    monkeypatch.setattr(reporting.JsonlWriter, "write", write)
+    monkeypatch.setattr(runfiles.JsonlWriter, "write", write)
     assert not os.path.exists(os.path.join(part, "summary.json"))
     assert sweep.main(["--resume", part, "--quiet", "--no-plot"]) == 0
     key = lambda r: (r["setting"], r["seed"], r["chunk"])

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from experiments import run
-from metapg_jax import reporting
-from metapg_jax.checkpoint import Checkpointer
+from metapg_jax.host import tb_events
+from metapg_jax.host.checkpoint import Checkpointer
 
 # A tiny Pendulum Meta run: cycles of 50 + 100 env steps, two per 300-step chunk.
 STEPS_PER_CYCLE = 150
@@ -26,7 +26,7 @@ NOT_SCALARS = ("seed", "chunk", "cycle", "env_steps")
 
 def read_events(folder):
     """{tag: [(step, value), ...]} from the TFRecord event files of one run folder, checking every CRC
-    (independent of metapg_jax.reporting's own reader; tensorboard itself is not installed)."""
+    (independent of metapg_jax.host.tb_events' own reader; tensorboard itself is not installed)."""
     from tensorboardX.proto import event_pb2
     from tensorboardX.record_writer import masked_crc32c
 
@@ -129,16 +129,16 @@ def test_a_resume_drops_events_past_the_checkpoint_and_writes_the_rows_they_lack
             assert events["eval_return"] == [(300 * (c + 1), c + 0.5 * seed) for c in range(chunks)]
             assert events["teacher/meta_reward"] == [((k + 1) * STEPS_PER_CYCLE, 0.25 * k - seed)
                                                      for k in range(2 * chunks)]
-            assert reporting.read_tensorboard_scalars(os.path.join(folder, f"seed_{seed}")) == events
+            assert tb_events.read_tensorboard_scalars(os.path.join(folder, f"seed_{seed}")) == events
 
     # Killed after writing chunk 2 but before checkpointing it: the resume (after chunk 1) drops chunk 2's
     # events, and then writes chunks 2-3 again as they come.
     killed = str(tmp_path / "killed")
-    w = reporting.TensorBoardWriter(killed, STEPS_PER_CYCLE)
+    w = tb_events.TensorBoardWriter(killed, STEPS_PER_CYCLE)
     w.write(rows[:4], cycles[:8])
     w.write(rows[4:6], cycles[8:12])
     w.close()
-    w = reporting.TensorBoardWriter(killed, STEPS_PER_CYCLE)
+    w = tb_events.TensorBoardWriter(killed, STEPS_PER_CYCLE)
     w.resume(rows[:4], cycles[:8], done_steps=600)
     check(killed, chunks=2)
     w.write(rows[4:6], cycles[8:12])
@@ -147,16 +147,16 @@ def test_a_resume_drops_events_past_the_checkpoint_and_writes_the_rows_they_lack
     check(killed, chunks=4)
     # Resumed without --tensorboard in between (chunks 2-3 have rows, no events): the gap is filled first.
     gap = str(tmp_path / "gap")
-    w = reporting.TensorBoardWriter(gap, STEPS_PER_CYCLE)
+    w = tb_events.TensorBoardWriter(gap, STEPS_PER_CYCLE)
     w.write(rows[:4], cycles[:8])
     w.close()
-    w = reporting.TensorBoardWriter(gap, STEPS_PER_CYCLE)
+    w = tb_events.TensorBoardWriter(gap, STEPS_PER_CYCLE)
     w.resume(rows, cycles, done_steps=1200)
     w.close()
     check(gap, chunks=4)
     # A run that never had --tensorboard: every finished row.
     never = str(tmp_path / "never")
-    w = reporting.TensorBoardWriter(never, STEPS_PER_CYCLE)
+    w = tb_events.TensorBoardWriter(never, STEPS_PER_CYCLE)
     w.resume(rows[:4], cycles[:8], done_steps=600)
     w.close()
     check(never, chunks=2)

@@ -122,7 +122,7 @@ def test_meta_learns_pendulum():
 
 
 def test_any_over_seeds_reduces_the_named_seed_axis_only():
-    from metapg_jax.loop import any_over_seeds
+    from metapg_jax.seeds import any_over_seeds
 
     flags = jnp.array([False, True, False])
     np.testing.assert_array_equal(vmap_seeds(any_over_seeds)(flags), [True, True, True])

@@ -41,7 +41,7 @@ def test_a_cell_rerun_at_its_commit_is_reproduced_and_a_changed_one_differs(tmp_
     assert "1 reproduced the stored numbers." in cells.dirty_summary([r])
 
     # as if the uncommitted changes had changed training: one number off
-    from metapg_jax.reporting import read_jsonl
+    from metapg_jax.host.runfiles import read_jsonl
 
     stored, rerun = read_jsonl(str(cell / "metrics.jsonl")), read_jsonl(str(tmp_path / "kept" / "run" / "metrics.jsonl"))
     assert verify.compare(stored, rerun, 2, 1e-5)["verdict"] == "reproduced"

@@ -62,7 +62,7 @@ def export_policies(path: str, config, student_actor, normalizer, action_low=Non
     arrays["normalizer/mean"] = np.asarray(mean)
     arrays["normalizer/std"] = np.asarray(std)
     arrays["description"] = np.frombuffer(json.dumps(description).encode(), dtype=np.uint8)
-    from metapg_jax.reporting import savez_atomic
+    from metapg_jax.host.runfiles import savez_atomic
 
     savez_atomic(path, arrays)
 

@@ -1,0 +1,49 @@
+"""What a run records about where it came from: the commit, whether the tree had uncommitted changes (and
+the changes themselves), and the machine."""
+
+from __future__ import annotations
+
+import os
+
+
+def _git(*args: str) -> str:
+    """A git command's output in the project's checkout ('' when git fails or is missing)."""
+    import subprocess
+
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    try:
+        return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True, timeout=10).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return ""
+
+
+# Tracked files outside ``results/``: the code a run's provenance speaks for (``results/`` holds outputs).
+_CODE = ("--", ".", ":(exclude)results")
+
+
+def record() -> dict:
+    """The commit (and whether the tree had changes) and the machine, recorded with every run.
+
+    ``dirty``: tracked files outside ``results/`` differ from the commit. ``results/`` holds outputs (reports
+    that a grid or screen rewrites between its cells), not code, so a rewritten report does not mark the
+    cells that start after it. ``uncommitted_diff`` gives the changes themselves."""
+    import platform
+
+    machine = {"platform": platform.platform(), "processor": platform.machine(),
+               "cpu_count": os.cpu_count(), "python": platform.python_version()}
+    try:
+        import jax
+
+        machine.update(jax_version=jax.__version__, jax_backend=jax.default_backend(),
+                       jax_devices=[str(d) for d in jax.devices()])
+    except Exception as err:  # noqa: BLE001 - provenance must never stop a run
+        machine["jax_error"] = repr(err)
+    return {"commit": _git("rev-parse", "HEAD") or "unknown",
+            "dirty": bool(_git("status", "--porcelain", "--untracked-files=no", *_CODE)),
+            "machine": machine}
+
+
+def uncommitted_diff() -> str:
+    """The uncommitted changes that make ``record()`` dirty: ``git diff HEAD`` of the tracked files outside
+    ``results/`` ('' for a clean tree)."""
+    return _git("diff", "HEAD", "--no-color", *_CODE)

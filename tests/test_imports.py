@@ -1,0 +1,94 @@
+"""The import graph: the pure library (``metapg_jax`` outside ``metapg_jax.host``, and the ``envs`` it builds
+on) never imports the host side, nor the libraries that do file, process or terminal I/O."""
+
+import ast
+import os
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+HOST_ONLY = ("metapg_jax.host", "tqdm", "matplotlib", "tensorboardX", "orbax", "subprocess")
+# ``metapg_jax.load_policy``: the package's lazy alias (its ``__getattr__``), imported only when accessed;
+# the last test checks that building and tracing a program does not load it.
+ALIASES = {"metapg_jax/__init__.py": {"metapg_jax.host.policy", "metapg_jax.host.policy.load_policy"}}
+
+
+def _imports(path):
+    """Every module an ``import`` or ``from ... import`` statement in the file names (at any depth)."""
+    names = set()
+    for node in ast.walk(ast.parse(open(path).read(), path)):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names.add(node.module)
+            names.update(f"{node.module}.{alias.name}" for alias in node.names)
+    return names
+
+
+def _pure_modules():
+    for package in ("metapg_jax", "envs"):
+        for folder, dirs, files in os.walk(os.path.join(ROOT, package)):
+            dirs[:] = [d for d in dirs if d not in ("host", "__pycache__")]
+            yield from (os.path.join(folder, f) for f in files if f.endswith(".py"))
+
+
+def test_the_pure_library_imports_nothing_of_the_host_side():
+    found = {os.path.relpath(path, ROOT): sorted(name for name in _imports(path)
+                                                 if name.split(".")[0] in HOST_ONLY or name.startswith(HOST_ONLY))
+             for path in _pure_modules()}
+    found = {f: [n for n in names if n not in ALIASES.get(f, ())] for f, names in found.items()}
+    assert len(found) > 15 and {f for f in found if f.startswith("metapg_jax/host")} == set()
+    assert {f: names for f, names in found.items() if names} == {}
+
+
+def test_the_host_package_is_seen_by_the_check():
+    """The check above would pass vacuously if it missed imports: the host side's own files trip it."""
+    names = _imports(os.path.join(ROOT, "metapg_jax", "host", "terminal.py")) | _imports(
+        os.path.join(ROOT, "metapg_jax", "host", "checkpoint.py"))
+    assert "tqdm" in names and "orbax.checkpoint" in names
+
+
+def test_building_and_tracing_a_training_program_loads_no_host_module():
+    code = ("import sys, jax\n"
+            "from metapg_jax.config import make_config\n"
+            "from metapg_jax.train import make_train, seed_keys, vmap_seeds\n"
+            "trainer = make_train(make_config('pendulum', 'meta', steps=600, overrides={'run.eval_every': 300}))\n"
+            "jax.eval_shape(vmap_seeds(trainer.train), seed_keys(0, 2))\n"
+            f"print(sorted(m for m in sys.modules if m.startswith({HOST_ONLY[:-1]!r})))\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_the_package_has_no_import_cycles_and_the_loop_imports_no_explorer_or_student():
+    modules = {}
+    for folder, dirs, files in os.walk(os.path.join(ROOT, "metapg_jax")):
+        dirs[:] = [d for d in dirs if d != "__pycache__"]
+        for f in files:
+            if f.endswith(".py") and f != "__init__.py":
+                name = os.path.relpath(os.path.join(folder, f[:-3]), ROOT).replace(os.sep, ".")
+                modules[name] = os.path.join(folder, f)
+    graph = {m: {d for d in _imports(p) if d in modules and d != m} for m, p in modules.items()}
+    assert not graph["metapg_jax.loop"] & {"metapg_jax.meta", "metapg_jax.noise", "metapg_jax.teacher",
+                                           "metapg_jax.explorers", "metapg_jax.train", "metapg_jax.students",
+                                           "metapg_jax.ddpg", "metapg_jax.td3"}
+    # Explorers use the student through its interface only (metapg_jax.students), never a student's module;
+    # a student takes the seed-axis helpers from metapg_jax.seeds, not from the loop.
+    for explorer in ("metapg_jax.meta", "metapg_jax.noise", "metapg_jax.teacher"):
+        assert not graph[explorer] & {"metapg_jax.ddpg", "metapg_jax.td3", "metapg_jax.students"}, explorer
+    for student in ("metapg_jax.ddpg", "metapg_jax.td3"):
+        assert "metapg_jax.loop" not in graph[student], student
+
+    state = {}
+
+    def visit(m, path):
+        if state.get(m) == "done":
+            return
+        assert state.get(m) != "open", "import cycle: " + " -> ".join(path + [m])
+        state[m] = "open"
+        for d in sorted(graph[m]):
+            visit(d, path + [m])
+        state[m] = "done"
+
+    for m in sorted(graph):
+        visit(m, [])
