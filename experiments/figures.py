@@ -167,7 +167,9 @@ def write_visitation(results: dict, out_dir: str, build: dict, tasks: Sequence[s
             continue
         pa, pb = os.path.join(a.path, "visits.npz"), os.path.join(b.path, "visits.npz")
         if os.path.exists(pa) and os.path.exists(pb):
-            files += _write_visitation_figure(task, a.config["meta"]["visit_samples"], pa, pb, out_dir, build,
+            from metapg_jax.config import from_dict
+
+            files += _write_visitation_figure(task, from_dict(a.config).run.visit_samples, pa, pb, out_dir, build,
                                               embedding, points_per_panel, seed, baseline)
     return files
 

@@ -26,7 +26,7 @@ METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta
                 "td3-normal": "TD3 (normal noise)"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
-# for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/config.py); the tuned
+# for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/strategies/noise.py); the tuned
 # preset's DDPG is the paper preset's.
 BASELINES = {"paper": BASELINE, "modern": "ddpg-normal", "tuned": BASELINE}
 # Each student's grid: its methods (a method's options plus ``--student=<student>`` for a student other

@@ -24,8 +24,10 @@ def _smooth(v: np.ndarray, width: int) -> np.ndarray:
     return num / np.maximum(den, 1)
 
 
-def plot_teacher(rows: list[dict], path: str, title: str) -> None:
-    """The teacher's curves per cycle: meta reward, log-std, R_hat(pi') vs R_hat(pi), teacher-student distance.
+def plot_cycles(rows: list[dict], panels, path: str, title: str) -> None:
+    """An explorer's per-cycle curves (``cycles.jsonl``), one panel per ``(metric or metrics, title)`` of its
+    ``cycle_panels`` (``metapg_jax.strategy``; the teacher's: meta reward, log-std, R_hat(pi') vs R_hat(pi),
+    teacher-student distance).
 
     Mean over seeds (thick) with ± std band, smoothed over ~1% of the run.
     """
@@ -34,12 +36,14 @@ def plot_teacher(rows: list[dict], path: str, title: str) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    cycles, _ = _per_seed(rows, "meta_reward")
+    first = panels[0][0]
+    cycles, _ = _per_seed(rows, first if isinstance(first, str) else first[0])
     width = max(1, len(cycles) // 100)
-    panels = [("meta_reward", "meta reward R_hat(pi') - R_hat(pi)"), ("teacher_log_std", "teacher mean log-std"),
-              (("r_hat_lookahead", "r_hat_pi"), "R_hat(pi') and R_hat(pi)"),
-              ("teacher_student_distance", "RMS teacher - student action on D0")]
-    fig, axes = plt.subplots(2, 2, figsize=(10, 6.5), dpi=110)
+    ncols = 2 if len(panels) > 1 else 1
+    nrows = -(-len(panels) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(5 * ncols, 3.25 * nrows), dpi=110, squeeze=False)
+    for ax in axes.ravel()[len(panels):]:
+        ax.set_visible(False)
     for ax, (key, label) in zip(axes.ravel(), panels):
         keys = key if isinstance(key, tuple) else (key,)
         for k, color in zip(keys, ("tab:orange", "tab:gray")):

@@ -51,13 +51,16 @@ import sys
 import time
 
 import envs
-from metapg_jax.host import compile_cache
 from metapg_jax import config as config_lib
+from metapg_jax import strategy
+from metapg_jax.host import compile_cache
 
-TEACHER_CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_log_std",
-                         "teacher_entropy", "teacher_student_distance")
-# Arguments that define the run; stored in config.json so --resume can rebuild and compare it.
-RUN_ARGS = {"env": "pendulum", "method": "meta", "teacher": None, "preset": "paper", "noise": None,
+# The explorers' command-line shortcuts for one field of their group (``--teacher``, ``--noise``;
+# metapg_jax.strategy.flags): {option: (explorer, dotted field)}.
+FLAGS = strategy.flags()
+# Arguments that define the run; stored in config.json so --resume can rebuild and compare it. The main job
+# trains the paper's teacher: --method defaults to meta.
+RUN_ARGS = {"env": "pendulum", "method": "meta", **{flag: None for flag in FLAGS}, "preset": "paper",
             "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "auto",
             "student": "ddpg", "overrides": [], "plugins": []}
 
@@ -68,25 +71,24 @@ def build_parser() -> argparse.ArgumentParser:
         description="Train DDPG (baseline) or Meta (Algorithm 1 of Xu et al., 2018) on many seeds at once.")
     d = RUN_ARGS
     p.add_argument("--env", default=None, help=f"task: {', '.join(envs.TASKS)} (default {d['env']})")
+    described = lambda specs: "; ".join(f"'{name}': {spec.summary}" for name, spec in specs.items())
     p.add_argument("--method", default=None,
-                   help="'meta' (the paper's learned teacher, default), 'ddpg' (noise baseline) or an explorer "
-                        "a --plugin registers")
-    p.add_argument("--teacher", default=None,
-                   help="meta teacher design: 'independent' (the paper's best; default) or 'variance'")
+                   help=f"the explorer (default {d['method']}): {described(strategy.explorers())}; or one a "
+                        f"--plugin registers")
+    for flag, (owner, field) in FLAGS.items():
+        p.add_argument(f"--{flag}", default=None,
+                       help=f"--method={owner} only: sets {field} (the same as --set {field}=V)")
     p.add_argument("--student", default=None,
-                   help="the off-policy learner: 'ddpg' (default), 'td3' (Fujimoto et al., 2018; with "
-                        "--preset=modern the TD3 authors' settings, 25k random warm-up steps for the baselines) "
-                        "or one a --plugin registers")
+                   help=f"the off-policy learner (default {d['student']}): {described(strategy.students())}; or "
+                        f"one a --plugin registers")
     p.add_argument("--plugin", dest="plugins", action="append", default=None, metavar="MODULE|FILE.py",
-                   help="import this module (dotted name) or Python file first: one that registers an explorer "
-                        "(metapg_jax.explorers.register) or a student (metapg_jax.students.register), whose name "
-                        "--method or --student then takes; repeatable; stored with the run, so --resume imports it "
-                        "again")
+                   help="import this module (dotted name) or Python file first: one that registers an explorer or "
+                        "a student (metapg_jax.strategy.register_explorer, register_student), whose name "
+                        "--method or --student then takes, and whose config group --set then sets; repeatable; "
+                        "stored with the run, so --resume imports it again")
     p.add_argument("--preset", default=None,
                    help="'paper' (2018 baselines DDPG; default), 'modern' (256-256, 1 update/step) or 'tuned' "
                         "(the paper preset with the screen's Meta schedule)")
-    p.add_argument("--noise", default=None,
-                   help="DDPG exploration noise: normal, ou, adaptive-param, none (default: the preset's)")
     p.add_argument("--seeds", type=int, default=None, help=f"number of seeds trained at once (default {d['seeds']})")
     p.add_argument("--seed", type=int, default=None,
                    help="base PRNG seed; seed i uses fold_in(PRNGKey(seed), i) (default 0)")
@@ -101,7 +103,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "stored with the run; --resume keeps it")
     p.add_argument("--set", dest="overrides", action="append", default=None, metavar="GROUP.FIELD=VALUE",
                    help="override any config field, e.g. --set ddpg.tau=0.005 --set run.eval_every=3000 "
-                        "(groups: env, run, ddpg, noise, meta; see metapg_jax/config.py)")
+                        "(groups: env, run, ddpg, and each strategy's own: noise, meta, td3, a plug-in's; see "
+                        "metapg_jax/config.py and metapg_jax/strategies/)")
     p.add_argument("--out", default=None, help="output folder (default runs/<env>-<method>-<preset>[-mujoco]-s<seed>)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("--resume", default=None, metavar="RUN_DIR",
@@ -190,14 +193,13 @@ def config_from_run_args(a: dict) -> config_lib.Config:
         raise ValueError(f"--steps must be positive, got {a['steps']}")
     if not 0 <= a["seed"] < 2 ** 32:
         raise ValueError(f"--seed must be in [0, 2**32), got {a['seed']}")
-    if a["method"] == "ddpg" and a["teacher"] is not None:
-        raise ValueError("--teacher applies to --method=meta only")
-    if a["method"] == "meta" and a["noise"] is not None:
-        raise ValueError("--noise applies to --method=ddpg only (meta explores with its teacher)")
-    cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], noise=a["noise"],
-                                 steps=a["steps"], source=a["source"], teacher=a["teacher"],
-                                 overrides=parse_overrides(a["overrides"]), physics=a["physics"],
-                                 student=a["student"])
+    for flag, (owner, _) in FLAGS.items():
+        if a.get(flag) is not None and a["method"] != owner:
+            raise ValueError(f"--{flag} applies to --method={owner} only")
+    cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], steps=a["steps"],
+                                 source=a["source"], overrides=parse_overrides(a["overrides"]),
+                                 physics=a["physics"], student=a["student"],
+                                 **{flag: a.get(flag) for flag in FLAGS})
     return config_lib.validate(cfg)
 
 
@@ -214,10 +216,12 @@ def _physics_label(cfg: config_lib.Config) -> str:
 
 
 def run_label(cfg: config_lib.Config) -> str:
-    """E.g. 'pendulum meta/independent' or 'hopper ddpg/adaptive-param'."""
-    detail = cfg.meta.teacher if cfg.run.method == "meta" else cfg.noise.kind
-    student = "" if cfg.student == "ddpg" else f" ({cfg.student})"
-    return f"{cfg.env.name} {cfg.run.method}/{detail}{student}"
+    """E.g. 'pendulum meta/independent' or 'hopper ddpg/adaptive-param (td3)': the explorer's label, and the
+    student where it is not the default one."""
+    label = cfg.explorer_spec.label
+    detail = f"/{label(cfg)}" if label else ""
+    student = "" if cfg.student == RUN_ARGS["student"] else f" ({cfg.student})"
+    return f"{cfg.env.name} {cfg.run.method}{detail}{student}"
 
 
 def check_devices(num_seeds: int) -> None:
@@ -349,7 +353,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
         cfg = config_from_run_args(a)
         a = resolved_run_args(a, cfg)
         engine = "-mujoco" if cfg.env.physics == "mujoco" else ""
-        student = "" if cfg.student == "ddpg" else f"-{cfg.student}"
+        student = "" if cfg.student == RUN_ARGS["student"] else f"-{cfg.student}"
         out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}{student}-{cfg.preset}{engine}"
                                                f"-s{a['seed']}")
         if os.path.exists(out) and not os.path.isdir(out):
@@ -601,7 +605,7 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
 
     metrics_writer = runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl")) if main_process else None
     cycle_writer = (runfiles.JsonlWriter(os.path.join(out, "cycles.jsonl"))
-                    if cfg.run.method == "meta" and main_process else None)
+                    if cfg.explorer_spec.cycle_metrics and main_process else None)
     tb_writer = None
     if tensorboard and main_process:
         tb_writer = tb_events.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle)
@@ -638,7 +642,8 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
                 t_chunk = now
                 cycles = []
                 if cycle_writer is not None:
-                    cycles = metric_rows.cycle_rows(metrics, TEACHER_CYCLE_METRICS, chunk * cfg.cycles_per_chunk)
+                    cycles = metric_rows.cycle_rows(metrics, cfg.explorer_spec.cycle_metrics,
+                                                  chunk * cfg.cycles_per_chunk)
                     cycle_writer.write(cycles)
                 if tb_writer is not None:
                     tb_writer.write(rows, cycles)
@@ -715,11 +720,12 @@ def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool
     if plot:
         title = f"{name}, {cfg.preset} preset: {num_seeds} seeds"
         metric_rows.plot_learning_curve(rows, os.path.join(out, "learning_curve.png"), title)
-        if cfg.run.method == "meta":
-            from experiments.plots import plot_teacher
+        spec = cfg.explorer_spec
+        if spec.cycle_panels:
+            from experiments.plots import plot_cycles
 
-            plot_teacher(runfiles.read_jsonl(os.path.join(out, "cycles.jsonl")),
-                         os.path.join(out, "teacher.png"), title)
+            plot_cycles(runfiles.read_jsonl(os.path.join(out, "cycles.jsonl")), spec.cycle_panels,
+                        os.path.join(out, spec.plot_file), title)
     for i, (v, last) in enumerate(zip(summary["final_return_per_seed"], summary["last_eval_return_per_seed"])):
         print(f"seed {i}: final return {stats.fmt(v, 1)} (last evaluation {stats.fmt(last, 1)})")
     line = f"{name}: {stats.describe_final(summary)}, {summary['env_steps']:,} env steps"

@@ -41,7 +41,7 @@ import envs
 from experiments import run as run_lib
 from metapg_jax.host import compile_cache
 
-SWEEP_ARGS = ("env", "method", "teacher", "student", "preset", "noise", "seeds", "seed", "steps", "source",
+SWEEP_ARGS = ("env", "method", *run_lib.FLAGS, "student", "preset", "seeds", "seed", "steps", "source",
               "physics", "overrides", "plugins")
 
 
@@ -49,7 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments.sweep",
                                 description="Run a grid of config settings x seeds as one compiled program per "
                                             "group of shape-compatible settings.")
-    for name in ("--env", "--method", "--teacher", "--student", "--preset", "--noise", "--source", "--physics"):
+    for name in ("--env", "--method", *(f"--{flag}" for flag in run_lib.FLAGS), "--student", "--preset", "--source",
+                 "--physics"):
         p.add_argument(name, default=None, help=f"as experiments.run {name}")
     p.add_argument("--seeds", type=int, default=None, help="seeds per setting (default 8)")
     p.add_argument("--seed", type=int, default=None, help="base PRNG seed, as experiments.run (default 0)")
@@ -157,7 +158,7 @@ def check_fits(a: dict, configs, groups, env) -> None:
 
 
 def default_out(a: dict) -> str:
-    student = "" if a["student"] == "ddpg" else f"-{a['student']}"
+    student = "" if a["student"] == run_lib.RUN_ARGS["student"] else f"-{a['student']}"
     return os.path.join("runs", f"sweep-{a['env']}-{a['method']}{student}-s{a['seed']}")
 
 

@@ -1,8 +1,7 @@
 """The training loop: the per-seed ``TrainState`` and the ``Trainer`` that advances it.
 
-A ``Trainer`` holds the config, the env, a *student* (the off-policy learner: ``metapg_jax.students``)
-and an *explorer* (who collects the student's data: ``metapg_jax.noise.NoiseExplorer`` for the DDPG
-baselines, ``metapg_jax.meta.TeacherExplorer`` for Algorithm 1; ``metapg_jax.explorers``). It gives
+A ``Trainer`` holds the config, the env, a *student* (the off-policy learner) and an *explorer* (who
+collects the student's data); both interfaces are in ``metapg_jax.strategy``. It gives
 
 * ``init(key) -> TrainState`` for one seed;
 * ``train_chunk(state) -> (state, metrics)``: a ``lax.scan`` over
@@ -14,15 +13,15 @@ and the building blocks an explorer's cycle is made of: ``store`` (buffer, norma
 ``student_updates`` (the student's updates on replay minibatches, with an optional hook between
 blocks of updates), ``random_action``, ``evaluate``. A *cycle* is the explorer's: the baseline's
 ``rollout_steps`` noisy-actor steps then ``train_steps`` updates, or one meta-iteration of
-Algorithm 1. This module imports no explorer: ``metapg_jax.train.make_train`` puts the pieces
+Algorithm 1. This module imports no strategy: ``metapg_jax.train.make_train`` puts the pieces
 together.
 
 Both paths give the same numbers for the same key. Seeds are a vmap over keys of these functions
 (``metapg_jax.seeds.vmap_seeds``); the host (``experiments.run``) jits the vmapped ``train_chunk`` once
 and calls it once per evaluation interval.
 
-The student interface (what the loop and the explorers use of a learner) is documented in
-``metapg_jax.students``; this module imports no student either.
+The student and explorer interfaces (what the loop and the explorers use) are documented in
+``metapg_jax.strategy``.
 """
 
 from __future__ import annotations
@@ -46,7 +45,7 @@ from metapg_jax.types import Transition
 
 @struct.dataclass
 class TrainState:
-    student: Any                     # the student's state (metapg_jax.students: .actor, and .critic if it has one)
+    student: Any                     # the student's state (metapg_jax.strategy.Student: .actor, and .critic if it has one)
     normalizer: norm_lib.NormalizerState
     buffer: replay.ReplayState
     env_state: State                 # the exploring env (episodes continue across cycles)
@@ -89,8 +88,8 @@ def train_updates(learner, student: Any, normalizer, sample, key: jax.Array, num
 class Trainer:
     config: Config
     env: Env
-    student: Any    # the learner: metapg_jax.students.Student (DDPG, TD3 or a registered one)
-    explorer: Any   # metapg_jax.explorers.Explorer: init(trainer, key) and cycle(trainer, state)
+    student: Any    # the learner: a metapg_jax.strategy.Student
+    explorer: Any   # a metapg_jax.strategy.Explorer: init(trainer, student_state, key), cycle(trainer, state)
 
     # ------------------------------------------------------------------ init
     def init(self, key: jax.Array) -> TrainState:
@@ -104,7 +103,7 @@ class Trainer:
             buffer=replay.init(cfg.buffer_capacity, self.student.obs_size, self.student.action_size),
             env_state=env_state,
             explorer=None,
-            visits=visits_lib.init(cfg.meta.visit_samples, self.student.obs_size),
+            visits=visits_lib.init(cfg.run.visit_samples, self.student.obs_size),
             key=key,
             env_steps=jnp.zeros((), jnp.int32),
             updates=jnp.zeros((), jnp.int32),

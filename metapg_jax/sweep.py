@@ -23,7 +23,7 @@ import jax
 import jax.numpy as jnp
 from brax.envs.base import Env
 
-from metapg_jax import explorers, students
+from metapg_jax import strategy
 from metapg_jax.config import Config
 from metapg_jax.loop import TrainState, Trainer
 
@@ -46,10 +46,10 @@ def set_fields(config: Config, values: dict[str, Any]) -> Config:
     for dotted, value in values.items():
         parts = dotted.split(".")
         if len(parts) == 1:
-            config = dataclasses.replace(config, **{parts[0]: value})
+            config = config.replace(**{parts[0]: value})
         else:
             group = getattr(config, parts[0])
-            config = dataclasses.replace(config, **{parts[0]: dataclasses.replace(group, **{parts[1]: value})})
+            config = config.replace(**{parts[0]: dataclasses.replace(group, **{parts[1]: value})})
     return config
 
 
@@ -71,7 +71,8 @@ class Sweep:
         cfg = set_fields(self.config, {f: (values[i] if t is float else values[i].astype(jnp.int32))
                                        for i, (f, t) in enumerate(zip(self.fields, types))})
         obs_size, action_size = int(self.env.observation_size), int(self.env.action_size)
-        return Trainer(cfg, self.env, students.make(cfg, obs_size, action_size), explorers.make(cfg))
+        return Trainer(cfg, self.env, strategy.student(cfg.student).make(cfg, obs_size, action_size),
+                       strategy.explorer(cfg.run.method).make(cfg))
 
     def init(self, key: jax.Array, values: jax.Array) -> TrainState:
         return self.trainer(values).init(key)

@@ -31,7 +31,6 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from metapg_jax.config import MetaConfig
 from metapg_jax.networks import MLP
 from metapg_jax.types import Params
 
@@ -50,7 +49,7 @@ class TeacherState:
 
 @dataclasses.dataclass(frozen=True)
 class Teacher:
-    cfg: MetaConfig
+    cfg: Any      # the meta group (metapg_jax.strategies.meta.MetaConfig)
     student: Any  # the learner whose actor the variance teacher's mean is (metapg_jax.loop: the student interface)
 
     @property

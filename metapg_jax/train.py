@@ -1,8 +1,7 @@
 """``make_train(config, env)``: the whole training run as pure, jittable functions.
 
-Builds the student of ``config.student`` (``metapg_jax.students``: ``ddpg``, ``td3`` or a registered
-one) and the explorer of ``config.run.method`` (``metapg_jax.explorers``: ``ddpg``, ``meta`` or a
-registered one) and returns a ``metapg_jax.loop.Trainer``: ``init(key)``, ``train_chunk(state)`` (one
+Builds the student of ``config.student`` and the explorer of ``config.run.method`` (registered in
+``metapg_jax.strategy``: the built-in ones or a plug-in's) and returns a ``metapg_jax.loop.Trainer``: ``init(key)``, ``train_chunk(state)`` (one
 evaluation interval) and ``train(key)`` (the whole run as one program). Seeds are a vmap over keys
 (``seed_keys``; ``vmap_seeds`` names the seed axis):
 
@@ -17,7 +16,7 @@ from typing import Any
 
 from brax.envs.base import Env
 
-from metapg_jax import explorers, students
+from metapg_jax import strategy
 from metapg_jax.config import Config, validate
 from metapg_jax.loop import Trainer
 from metapg_jax.seeds import seed_keys, vmap_seeds
@@ -45,7 +44,7 @@ def make_train(config: Config, env: Env | None = None, *, student: str | Any | N
                         physics=config.env.physics)
     obs_size, action_size = int(env.observation_size), int(env.action_size)
     if student is None or isinstance(student, str):
-        student = students.make(config, obs_size, action_size)
+        student = strategy.student(config.student).make(config, obs_size, action_size)
     if explorer is None or isinstance(explorer, str):
-        explorer = explorers.make(config)
+        explorer = strategy.explorer(config.run.method).make(config)
     return Trainer(config, env, student, explorer)

@@ -1,15 +1,12 @@
-"""DDPG losses against hand-computed numbers, targets, noise, replay, normaliser."""
+"""DDPG (metapg_jax/strategies/ddpg.py): losses against hand-computed numbers, targets, architecture."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from metapg_jax import noise as noise_lib
-from metapg_jax import normalizer as norm_lib
-from metapg_jax import replay
-from metapg_jax.config import DDPGConfig, NoiseConfig
-from metapg_jax.ddpg import DDPG
+from metapg_jax.config import DDPGConfig
+from metapg_jax.strategies.ddpg import DDPG
 from metapg_jax.types import Transition
 
 CFG = DDPGConfig(hidden=(16, 8), layer_norm=False, critic_action_layer=1, critic_l2=0.1, gamma=0.9,
@@ -128,58 +125,3 @@ def test_baselines_architecture_and_init():
     assert p["dense_1"]["kernel"].shape == (64 + 2, 64)   # action at the second layer
     assert "ln_0" in p and "ln_1" in p
     assert float(jnp.abs(s.actor["params"]["out"]["kernel"]).max()) <= 3e-3
-
-
-def test_replay_ring_buffer_wraps_and_samples_filled_part():
-    buf = replay.init(5, 2, 1)
-    mk = lambda start, n: Transition(obs=jnp.arange(start, start + n, dtype=jnp.float32)[:, None].repeat(2, 1),
-                                     action=jnp.zeros((n, 1)), reward=jnp.arange(start, start + n, dtype=jnp.float32),
-                                     next_obs=jnp.zeros((n, 2)), terminated=jnp.zeros(n), truncated=jnp.zeros(n))
-    buf = replay.add(buf, mk(0, 3))
-    assert int(buf.size) == 3 and int(buf.ptr) == 3
-    s = replay.sample(buf, jax.random.PRNGKey(0), 100)
-    assert set(np.asarray(s.reward).tolist()) <= {0.0, 1.0, 2.0}
-    buf = replay.add(buf, mk(3, 4))  # wraps: 3, 4 then 5, 6 overwrite slots 0, 1
-    assert int(buf.size) == 5 and int(buf.ptr) == 2
-    np.testing.assert_array_equal(buf.data.reward, [5, 6, 2, 3, 4])
-    assert replay.nbytes(buf) == 5 * (2 + 1 + 1 + 2 + 1 + 1) * 4
-
-
-def test_normalizer_matches_numpy_and_clips():
-    x = np.random.default_rng(0).normal(3.0, 2.0, size=(1000, 2)).astype(np.float32)
-    st = norm_lib.update(norm_lib.init(2), jnp.asarray(x))
-    mean, std = norm_lib.mean_std(st)
-    np.testing.assert_allclose(mean, x.mean(0), rtol=1e-3)
-    np.testing.assert_allclose(std, x.std(0), rtol=1e-3)
-    assert float(norm_lib.normalize(st, jnp.array([1e3, -1e3]), 5.0).max()) == 5.0
-
-
-def test_noise_kinds():
-    ddpg = DDPG(DDPGConfig(), 3, 2)
-    actor = ddpg.init(jax.random.PRNGKey(0)).actor
-    obs = jnp.ones(3)
-    key = jax.random.PRNGKey(1)
-    mu = ddpg.actor_apply(actor, obs)
-    # normal: mean zero around mu; clipped.
-    cfg = NoiseConfig(kind="normal", stddev=0.3)
-    st = noise_lib.init(cfg, actor, 2)
-    acts = jax.vmap(lambda k: noise_lib.act(cfg, st, ddpg.actor_apply, actor, obs, k)[0])(jax.random.split(key, 4000))
-    np.testing.assert_allclose(acts.mean(0), mu, atol=0.03)
-    np.testing.assert_allclose(acts.std(0), 0.3, atol=0.03)
-    # OU: the state moves and resets to zero at an episode start.
-    cfg = NoiseConfig(kind="ou", stddev=0.3)
-    st = noise_lib.init(cfg, actor, 2)
-    _, st = noise_lib.act(cfg, st, ddpg.actor_apply, actor, obs, key)
-    assert float(jnp.abs(st.ou).sum()) > 0
-    assert float(jnp.abs(noise_lib.episode_start(cfg, st, actor, key).ou).sum()) == 0
-    # Parameter noise perturbs everything but LayerNorm; adaptation shrinks a too-large stddev.
-    cfg = NoiseConfig(kind="adaptive-param", stddev=0.2)
-    st = noise_lib.episode_start(cfg, noise_lib.init(cfg, actor, 2), actor, key)
-    p, q = actor["params"], st.perturbed["params"]
-    assert not np.allclose(p["dense_0"]["kernel"], q["dense_0"]["kernel"])
-    np.testing.assert_array_equal(p["ln_0"]["scale"], q["ln_0"]["scale"])
-    big = st.replace(stddev=jnp.asarray(5.0))
-    obs_b = jax.random.normal(key, (64, 3))
-    assert float(noise_lib.adapt(cfg, big, ddpg.actor_apply, actor, obs_b, key).stddev) == pytest.approx(5.0 / 1.01)
-    small = st.replace(stddev=jnp.asarray(1e-4))
-    assert float(noise_lib.adapt(cfg, small, ddpg.actor_apply, actor, obs_b, key).stddev) == pytest.approx(1.01e-4)

@@ -83,14 +83,10 @@ def test_the_plugin_examples_of_the_readme_and_running_md_train(example, monkeyp
 
     import jax
 
-    from metapg_jax import config as config_lib
-    from metapg_jax import explorers, students
     from metapg_jax.train import make_train, seed_keys, vmap_seeds
+    from tests.helpers import isolated_registry
 
-    for module in (explorers, students):  # no registration leaks out
-        monkeypatch.setattr(module, "_FACTORIES", dict(module._FACTORIES))
-    for name in ("_REGISTERED_METHODS", "_REGISTERED_STUDENTS"):
-        monkeypatch.setattr(config_lib, name, set(getattr(config_lib, name)))
+    isolated_registry(monkeypatch)  # no registration leaks out
     if example == "explorer":  # the README's library example, up to its 8-seed training
         code = re.search(r"```python\n(.*?)```", read("README.md"), re.S).group(1)
         code = code[:code.index("trainer = make_train")]
@@ -100,9 +96,8 @@ def test_the_plugin_examples_of_the_readme_and_running_md_train(example, monkeyp
     namespace = {}
     exec(code, namespace)
     cfg = namespace["cfg"]
-    cfg = dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, total_steps=600, eval_every=300, eval_episodes=1),
-                              meta=dataclasses.replace(cfg.meta, hidden=(16, 16)),
-                              ddpg=dataclasses.replace(cfg.ddpg, hidden=(16, 16)))
+    cfg = cfg.replace(run=dataclasses.replace(cfg.run, total_steps=600, eval_every=300, eval_episodes=1),
+                      meta=dataclasses.replace(cfg.meta, hidden=(16, 16)), ddpg=dataclasses.replace(cfg.ddpg, hidden=(16, 16)))
     trainer = make_train(cfg)
     if example == "student":
         assert type(trainer.student).__name__ == "HuberDDPG"

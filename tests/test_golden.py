@@ -30,7 +30,8 @@ def test_short_runs_give_the_stored_numbers(name):
 
 
 def test_every_method_has_a_case_and_every_case_is_checked():
-    from metapg_jax.config import NOISES, TEACHERS
+    from metapg_jax.strategies.meta import TEACHERS
+    from metapg_jax.strategies.noise import NOISES
 
     kinds = {(env, method, noise or teacher) for env, method, _, noise, teacher, *_ in golden.CASES.values()}
     for env in ("pendulum",):

@@ -60,7 +60,7 @@ def test_building_and_tracing_a_training_program_loads_no_host_module():
     assert out.stdout.strip().splitlines()[-1] == "[]"
 
 
-def test_the_package_has_no_import_cycles_and_the_loop_imports_no_explorer_or_student():
+def test_the_package_has_no_import_cycles_and_nothing_imports_a_strategy():
     modules = {}
     for folder, dirs, files in os.walk(os.path.join(ROOT, "metapg_jax")):
         dirs[:] = [d for d in dirs if d != "__pycache__"]
@@ -69,14 +69,14 @@ def test_the_package_has_no_import_cycles_and_the_loop_imports_no_explorer_or_st
                 name = os.path.relpath(os.path.join(folder, f[:-3]), ROOT).replace(os.sep, ".")
                 modules[name] = os.path.join(folder, f)
     graph = {m: {d for d in _imports(p) if d in modules and d != m} for m, p in modules.items()}
-    assert not graph["metapg_jax.loop"] & {"metapg_jax.meta", "metapg_jax.noise", "metapg_jax.teacher",
-                                           "metapg_jax.explorers", "metapg_jax.train", "metapg_jax.students",
-                                           "metapg_jax.ddpg", "metapg_jax.td3"}
-    # Explorers use the student through its interface only (metapg_jax.students), never a student's module;
-    # a student takes the seed-axis helpers from metapg_jax.seeds, not from the loop.
-    for explorer in ("metapg_jax.meta", "metapg_jax.noise", "metapg_jax.teacher"):
-        assert not graph[explorer] & {"metapg_jax.ddpg", "metapg_jax.td3", "metapg_jax.students"}, explorer
-    for student in ("metapg_jax.ddpg", "metapg_jax.td3"):
+    strategies = {m for m in modules if m.startswith("metapg_jax.strategies.")}
+    assert {"metapg_jax.strategies.ddpg", "metapg_jax.strategies.meta", "metapg_jax.strategies.noise",
+            "metapg_jax.strategies.td3"} <= strategies
+    # Nothing imports a strategy's module (the registry finds them; metapg_jax/strategy.py), and a strategy
+    # imports no other: an explorer uses the student through its interface only.
+    assert {m: graph[m] & strategies for m in modules if graph[m] & strategies} == {}
+    # A student takes the seed-axis helpers from metapg_jax.seeds, not from the loop.
+    for student in ("metapg_jax.strategies.ddpg", "metapg_jax.strategies.td3", "metapg_jax.actor_critic"):
         assert "metapg_jax.loop" not in graph[student], student
 
     state = {}

@@ -1,8 +1,8 @@
-"""Long runs: resume equality, SIGKILL + resume, corrupted checkpoint, device sharding, NaN guard, export."""
+"""Long runs: resume equality, corrupted checkpoint, device sharding, NaN guard, export (SIGKILL + resume:
+tests/test_physics.py on the C engine, tests/test_multiprocess.py with several processes)."""
 
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -16,7 +16,7 @@ from experiments import run
 from metapg_jax import load_policy
 from metapg_jax.host.checkpoint import Checkpointer
 from tests import xla_flags
-from tests.helpers import TINY_BUFFER, TINY_RUN
+from tests.helpers import TINY_BUFFER, TINY_RUN, assert_same_run, metrics_rows, policy_arrays, run_subprocess
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # The replay capacity is min(1e6, budget) unless run.buffer_size sets it: GROWING's runs of other budgets
@@ -24,34 +24,6 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # so the session's compile cache (conftest.py) compiles them once.
 GROWING = [*TINY_RUN, "--quiet", "--no-plot", "--checkpoint-every=1"]
 TINY = GROWING + TINY_BUFFER
-
-
-def _metrics(out):
-    rows = [json.loads(line) for line in open(os.path.join(out, "metrics.jsonl"))]
-    for r in rows:
-        r.pop("wall_time"), r.pop("chunk_seconds")
-    return rows
-
-
-def _policy_arrays(out):
-    with np.load(os.path.join(out, "policy.npz")) as f:
-        return {k: f[k] for k in f.files if k != "description"}
-
-
-def _assert_same_run(a, b):
-    assert _metrics(a) == _metrics(b)
-    pa, pb = _policy_arrays(a), _policy_arrays(b)
-    assert pa.keys() == pb.keys()
-    for k in pa:
-        np.testing.assert_array_equal(pa[k], pb[k], err_msg=k)
-
-
-def _subprocess(args, **kw):
-    # The child inherits JAX_PLATFORMS (conftest.py defaults it to cpu): a killed run resumed on another
-    # backend than the in-process reference run's would differ from it in round-off.
-    env = {**os.environ, **kw.pop("env", {})}
-    return subprocess.Popen([sys.executable, "-m", "experiments.run", *args], cwd=ROOT, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
 
 @pytest.fixture(scope="session")  # built once per xdist worker, whatever runs in between
@@ -79,7 +51,7 @@ def test_resume_continues_bit_for_bit_without_duplicate_metrics(reference, tmp_p
     ck.manager.delete(3)
     ck.close()
     assert run.main(["--resume", out, "--quiet", "--no-plot"]) == 0
-    _assert_same_run(reference, out)
+    assert_same_run(reference, out)
 
 
 def test_a_run_loaded_from_the_compile_cache_equals_a_compiled_one(reference, tmp_path, capsys):
@@ -100,7 +72,7 @@ def test_a_run_loaded_from_the_compile_cache_equals_a_compiled_one(reference, tm
         assert second["compile_cache_compiled"] == second["compile_cache_stored"] == 0
         assert second["compile_cache_loaded"] == first["compile_cache_stored"]
         for out in outs:
-            _assert_same_run(out, reference)
+            assert_same_run(out, reference)
         # (--compile-cache off: test_nan_guard_names_the_seed_and_stops, whose program compiles anyway.)
     finally:  # later tests in this process: JAX's default (conftest.py puts the pytest run's cache back)
         jax.config.update("jax_persistent_cache_min_compile_time_secs", min_secs)
@@ -141,9 +113,9 @@ def test_extending_a_finished_run_equals_the_longer_run(growing_reference, tmp_p
     assert run.main(GROWING + ["--steps=600", "--out", out]) == 0
     short = json.load(open(os.path.join(out, "summary.json")))
     assert short["env_steps"] == 600
-    short_policy = _policy_arrays(out)
+    short_policy = policy_arrays(out)
     assert run.main(["--resume", out, "--steps=900", "--quiet", "--no-plot"]) == 0
-    _assert_same_run(reference, out)
+    assert_same_run(reference, out)
     stored = json.load(open(os.path.join(out, "config.json")))
     assert stored["config"]["run"]["total_steps"] == 900 and stored["run_args"]["steps"] == 900
     assert [(e["from_steps"], e["to_steps"]) for e in stored["extensions"]] == [(600, 900)]
@@ -181,7 +153,7 @@ def test_an_interrupted_extension_resumes_from_the_smaller_checkpoint(growing_re
     run._record_extension(out, cfg, {**stored["run_args"], "steps": 900}, 600)  # as if killed right after
     assert not os.path.exists(os.path.join(out, "summary.json"))
     assert run.main(["--resume", out, "--quiet", "--no-plot"]) == 0
-    _assert_same_run(reference, out)
+    assert_same_run(reference, out)
 
 
 def test_an_extension_must_change_the_budget_only(tmp_path, capsys):
@@ -194,32 +166,6 @@ def test_an_extension_must_change_the_budget_only(tmp_path, capsys):
     assert run.main(["--resume", out, "--steps=300", "--quiet"]) == 2
     assert "extended, not shortened" in capsys.readouterr().err
     assert json.load(open(os.path.join(out, "config.json")))["config"]["run"]["total_steps"] == 600
-
-
-def sigkill_resume_and_compare(tmp_path, args, chunks, resume_args=()):
-    """Runs ``args`` (2 seeds, a checkpoint per chunk) in a subprocess, SIGKILLs it once 2 chunks are in
-    metrics.jsonl, resumes it in another process, and asserts it equals the uninterrupted run."""
-    out = str(tmp_path / "killed")
-    proc = _subprocess(args + ["--out", out])
-    metrics = os.path.join(out, "metrics.jsonl")
-    deadline = time.time() + 300
-    while time.time() < deadline:
-        if os.path.exists(metrics) and sum(1 for _ in open(metrics)) >= 4:  # 2 chunks x 2 seeds
-            break
-        if proc.poll() is not None:
-            pytest.fail("the run ended before it could be killed: " + proc.stderr.read()[-2000:])
-        time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait()
-    done = Checkpointer(os.path.join(out, "checkpoints")).steps()
-    assert done and done[-1] < chunks, done
-    res = _subprocess(["--resume", out, "--quiet", "--no-plot", *resume_args])
-    _, err = res.communicate(timeout=600)
-    assert res.returncode == 0, err[-3000:]
-    full = str(tmp_path / "full")
-    assert run.main(args + ["--out", full]) == 0
-    _assert_same_run(full, out)
-    return full
 
 
 @pytest.mark.parametrize("given, expected", [
@@ -276,12 +222,12 @@ def test_seed_results_do_not_depend_on_the_device_count(tmp_path, monkeypatch, c
     # optimisation level, the jax version and the device count (jax 0.12 at the suite's level 0 gives both),
     # far below the 1e-2 between two seeds checked below.
     one, two = str(tmp_path / "one_device"), str(tmp_path / "two_devices")
-    p2 = _subprocess(TINY + ["--steps=300", "--out", two], env={"XLA_FLAGS": xla_flags("--xla_force_host_platform_device_count=2")})
+    p2 = run_subprocess(TINY + ["--steps=300", "--out", two], env={"XLA_FLAGS": xla_flags("--xla_force_host_platform_device_count=2")})
     assert run.main(TINY + ["--steps=300", "--out", one]) == 0
     out2, err2 = p2.communicate(timeout=600)
     assert p2.returncode == 0, err2[-3000:]
     assert "on 1 cpu device(s)" in capsys.readouterr().out and "on 2 cpu device(s)" in out2
-    a, b = _policy_arrays(one), _policy_arrays(two)
+    a, b = policy_arrays(one), policy_arrays(two)
     for k in a:
         np.testing.assert_allclose(a[k], b[k], rtol=1e-4, atol=1e-4, err_msg=k)
     # ... while different seeds differ by orders of magnitude more.
@@ -355,7 +301,7 @@ def test_exported_policy_reproduces_the_training_evaluation(reference):
     with jax.default_matmul_precision("highest"):
         _check_exported_policy(reference, trainer, state, key)
     # The final evaluation in the metrics used the same parameters.
-    last = [r for r in _metrics(reference) if r["chunk"] == 2]
+    last = [r for r in metrics_rows(reference) if r["chunk"] == 2]
     assert len(last) == 2 and all(np.isfinite(r["eval_return"]) for r in last)
 
 
@@ -367,7 +313,7 @@ def test_export_replays_the_policies_in_gymnasium_and_stores_the_report(referenc
     assert export.main(argv) == 0
     got = json.load(open(report))
     assert got["gym_id"] == "Pendulum-v1" and got["episodes"] == 2 and got["command"][3:] == argv
-    last = {r["seed"]: r["eval_return"] for r in _metrics(reference) if r["chunk"] == 2}
+    last = {r["seed"]: r["eval_return"] for r in metrics_rows(reference) if r["chunk"] == 2}
     assert [s["seed"] for s in got["seeds"]] == [0, 1]
     for s in got["seeds"]:
         assert s["training_eval"] == pytest.approx(last[s["seed"]])

@@ -7,9 +7,10 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from metapg_jax import meta
-from metapg_jax.config import DDPGConfig, MetaConfig, validate
-from metapg_jax.ddpg import DDPG
+from metapg_jax.strategies import meta
+from metapg_jax.config import DDPGConfig, validate
+from metapg_jax.strategies.ddpg import DDPG
+from metapg_jax.strategies.meta import MetaConfig
 from metapg_jax.teacher import Teacher
 from metapg_jax.train import make_train
 from tests.helpers import tiny_config

@@ -21,11 +21,10 @@ import time
 import numpy as np
 
 from tests import xla_flags
+from tests.helpers import tiny_argv
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TINY = ["--env=pendulum", "--method=ddpg", "--seeds=2", "--steps=1500", "--quiet", "--no-plot",
-        "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "ddpg.batch_size=16",
-        "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--checkpoint-every=1"]
+TINY = [*tiny_argv("ddpg"), "--steps=1500", "--checkpoint-every=1"]
 TIMEOUT = 600
 
 

@@ -23,7 +23,7 @@ import pytest
 import envs
 from envs.gym_mujoco import GYMNASIUM_TASKS
 from envs.mujoco_c import STATE_SPEC, HostPhysics, MujocoCEnv
-from tests.helpers import gymnasium_make
+from tests.helpers import gymnasium_make, sigkill_resume_and_compare, tiny_argv
 
 # task -> (gymnasium id, steps of one whole episode: gymnasium's time limit)
 TASKS = {
@@ -200,15 +200,11 @@ def test_cli_refuses_bad_physics_before_compiling(argv, message, tmp_path, capsy
 
 # DDPG (a smaller program than Meta's, whose C-engine runs test_train.py and the tiny run per task below
 # cover): the C engine's state in checkpoints and a resume bit for bit.
-TINY_IP = ["--env=inverted_pendulum", "--physics=mujoco", "--method=ddpg", "--seeds=2", "--quiet", "--no-plot",
-           "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "run.eval_episodes=2",
-           "--set", "run.train_steps=5", "--set", "env.episode_length=60", "--checkpoint-every=1",
+TINY_IP = [*tiny_argv("ddpg", env="inverted_pendulum"), "--physics=mujoco", "--checkpoint-every=1",
            "--compile-cache=off"]
 
 
 def test_c_engine_run_resumes_bit_for_bit_after_sigkill(tmp_path):
-    from tests.test_longrun import sigkill_resume_and_compare
-
     full = sigkill_resume_and_compare(tmp_path, TINY_IP + ["--steps=3000"], chunks=10,
                                       resume_args=["--compile-cache=off"])
     summary = json.load(open(os.path.join(full, "summary.json")))

@@ -3,6 +3,7 @@ by name (``--plugin FILE --method NAME --student NAME``) with no edit to the pac
 
 import json
 import os
+import subprocess
 import sys
 import textwrap
 
@@ -10,21 +11,55 @@ import numpy as np
 import pytest
 
 from experiments import run
-from metapg_jax import config as config_lib
-from metapg_jax import explorers, students
+from tests.helpers import ROOT, isolated_registry, tiny_argv
 
 PLUGIN = textwrap.dedent('''
-    """A user's file: uniformly random exploration (the explorer of tests/test_explorers.py), and a DDPG that
-    counts its own updates."""
+    """A user's file: uniformly random exploration with its own config group (the action scale and the cycle
+    length), schedule and metric, and a DDPG that counts its own updates."""
     import dataclasses
 
     import jax
     import jax.numpy as jnp
     from flax import struct
 
-    from metapg_jax import explorers, students
-    from metapg_jax.ddpg import DDPG
-    from tests.test_explorers import UniformExplorer
+    from metapg_jax import strategy
+    from metapg_jax.rollout import rollout
+    from metapg_jax.strategies.ddpg import DDPG
+
+
+    @dataclasses.dataclass(frozen=True)
+    class UniformConfig:
+        scale: float = 1.0       # actions ~ U(-scale, scale)
+        cycle_steps: int = 50    # env steps per cycle
+
+
+    @dataclasses.dataclass(frozen=True)
+    class UniformExplorer:
+        cfg: UniformConfig
+
+        def init(self, trainer, student, key):
+            return {"steps": jnp.zeros((), jnp.int32)}
+
+        def cycle(self, trainer, state):
+            key, k_roll, k_train = jax.random.split(state.key, 3)
+            policy = lambda carry, obs, first, k: (self.cfg.scale * trainer.random_action(k), carry, None)
+            env_state, _, data, _, _ = rollout(trainer.env, policy, state.env_state, None, k_roll, self.cfg.cycle_steps)
+            state = trainer.store(state.replace(env_state=env_state, key=key), data)
+            state, metrics = trainer.student_updates(state, k_train, trainer.config.run.train_steps)
+            steps = state.explorer["steps"] + data.reward.shape[0]
+            return state.replace(explorer={"steps": steps}), {
+                **metrics, "uniform_steps": steps, "largest_action": jnp.max(jnp.abs(data.action))}
+
+
+    def _validate(config):
+        if config.run.method == "uniform" and not config.uniform.scale > 0:
+            raise ValueError(f"uniform.scale must be positive, got {config.uniform.scale}")
+
+
+    strategy.register_explorer(
+        "uniform", lambda config: UniformExplorer(config.uniform), group=UniformConfig, validate=_validate,
+        steps_per_cycle=lambda config: config.uniform.cycle_steps, cycle_metrics=("largest_action",),
+        cycle_panels=(("largest_action", "largest |action|"),), label=lambda config: f"x{config.uniform.scale}")
 
 
     @struct.dataclass
@@ -65,57 +100,57 @@ PLUGIN = textwrap.dedent('''
             return CountingState(inner, count), {**metrics, "own_updates": count.astype(jnp.float32)}
 
 
-    explorers.register("uniform", lambda config: UniformExplorer())
-    students.register("counting", lambda config, obs, act: CountingDDPG(DDPG(config.ddpg, obs, act), obs, act))
+    strategy.register_student("counting", lambda config, obs, act: CountingDDPG(DDPG(config.ddpg, obs, act), obs, act))
 ''')
 
-TINY = ["--env=pendulum", "--seeds=2", "--quiet", "--no-plot", "--set", "run.eval_every=300",
-        "--set", "ddpg.hidden=16,16", "--set", "ddpg.batch_size=16", "--set", "run.train_steps=5",
-        "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--set", "env.episode_length=60"]
+TINY = tiny_argv(method=None)
 
 
 @pytest.fixture
 def clean_registries(monkeypatch):
     """Registrations made by a test do not leak into the others."""
-    monkeypatch.setattr(explorers, "_FACTORIES", dict(explorers._FACTORIES))
-    monkeypatch.setattr(students, "_FACTORIES", dict(students._FACTORIES))
-    monkeypatch.setattr(config_lib, "_REGISTERED_METHODS", set(config_lib._REGISTERED_METHODS))
-    monkeypatch.setattr(config_lib, "_REGISTERED_STUDENTS", set(config_lib._REGISTERED_STUDENTS))
+    isolated_registry(monkeypatch)
 
 
-def _rows(out):
-    return [json.loads(line) for line in open(os.path.join(out, "metrics.jsonl"))]
+def _rows(out, name="metrics.jsonl"):
+    return [json.loads(line) for line in open(os.path.join(out, name))]
 
 
 @pytest.mark.usefixtures("clean_registries")
-def test_a_plugin_explorer_and_student_train_through_the_cli_and_resume(tmp_path, monkeypatch):
+def test_a_plugin_explorer_and_student_train_through_the_cli_and_resume(tmp_path):
     from metapg_jax import load_policy
 
-    plugin = tmp_path / "my_exploration.py"
+    plugin = tmp_path / "my_exploration.py"  # outside the package
     plugin.write_text(PLUGIN)
     out = str(tmp_path / "run")
-    argv = [*TINY, f"--plugin={plugin}", "--method=uniform", "--student=counting"]
+    argv = [*TINY, f"--plugin={plugin}", "--method=uniform", "--student=counting", "--checkpoint-every=1",
+            "--set", "uniform.cycle_steps=30", "--set", "uniform.scale=0.5"]
+    assert run.main([*argv, "--set", "uniform.scale=-1", "--out", str(tmp_path / "bad")]) == 2  # its own check
+    assert not os.path.exists(tmp_path / "bad")
     assert run.main([*argv, "--steps=600", "--out", out]) == 0
     stored = json.load(open(os.path.join(out, "config.json")))
     assert stored["config"]["student"] == "counting" and stored["config"]["run"]["method"] == "uniform"
+    assert stored["config"]["uniform"] == {"scale": 0.5, "cycle_steps": 30}  # its group, with the override
     assert stored["run_args"]["plugins"] == [str(plugin)]
     rows = _rows(out)
     assert {r["chunk"] for r in rows} == {0, 1} and all(np.isfinite(r["eval_return"]) for r in rows)
     assert all(r["own_updates"] > 0 for r in rows)                         # the student's own metric
-    assert [r["uniform_steps"] for r in rows if r["seed"] == 0][-1] > 0    # the explorer's
+    # The explorer's: steps after each of a chunk's ten 30-step cycles, as the chunk's mean (30, 60, ... 300: 165).
+    assert [r["uniform_steps"] for r in rows if r["seed"] == 0] == [165, 465]
+    cycles = _rows(out, "cycles.jsonl")  # its per-cycle metric: 10 cycles per chunk
+    assert len(cycles) == 2 * 20 and all(0 < c["largest_action"] <= 0.5 for c in cycles)
     act = load_policy(os.path.join(out, "policy.npz"), seed=0)             # export works for it
     assert act(np.zeros(3, np.float32)).shape == (1,)
 
-    # A later process knows nothing of the plugin: --resume imports it again from the stored run.
-    for name in [m for m in sys.modules if m.startswith("metapg_plugin_")]:
-        monkeypatch.delitem(sys.modules, name)
-    monkeypatch.setattr(explorers, "_FACTORIES", {k: v for k, v in explorers._FACTORIES.items() if k != "uniform"})
-    monkeypatch.setattr(students, "_FACTORIES", {k: v for k, v in students._FACTORIES.items() if k != "counting"})
-    monkeypatch.setattr(config_lib, "_REGISTERED_METHODS", config_lib._REGISTERED_METHODS - {"uniform"})
-    monkeypatch.setattr(config_lib, "_REGISTERED_STUDENTS", config_lib._REGISTERED_STUDENTS - {"counting"})
-    assert run.main(["--quiet", "--no-plot", "--resume", out, "--steps=900"]) == 0
+    # A fresh process knows nothing of the plugin: --resume imports it again from the stored run, with its
+    # group's stored values.
+    res = subprocess.run([sys.executable, "-m", "experiments.run", "--quiet", "--no-plot", "--resume", out,
+                          "--steps=900"], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-3000:]
     rows = _rows(out)
     assert {r["chunk"] for r in rows} == {0, 1, 2} and len(rows) == 6
+    assert [r["uniform_steps"] for r in rows if r["seed"] == 0] == [165, 465, 765]
+    assert json.load(open(os.path.join(out, "config.json")))["config"]["uniform"]["scale"] == 0.5
 
 
 @pytest.mark.usefixtures("clean_registries")
@@ -133,5 +168,5 @@ def test_bad_plugins_and_unknown_names_are_refused_before_compiling(tmp_path, ca
     plugin.write_text(PLUGIN)
     assert run.main([*TINY, "--plugin", str(plugin), "--student=sac", "--out", str(tmp_path / "d")]) == 2
     err = capsys.readouterr().err
-    assert "unknown student 'sac'; valid students: ddpg, td3, counting" in err
+    assert "unknown student 'sac'; valid students: counting, ddpg, td3" in err
     assert not os.path.exists(tmp_path / "d")

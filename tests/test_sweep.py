@@ -13,16 +13,11 @@ import envs
 from experiments import run, sweep
 from metapg_jax.host import runfiles
 from metapg_jax.sweep import structural_fields
-from tests.helpers import tiny_config
+from tests.helpers import tiny_argv, tiny_config
 
-TINY = ["--env=pendulum", "--method=meta", "--seeds=2", "--steps=600", "--quiet",
-        "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
-        "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16", "--set", "ddpg.batch_size=16",
-        "--set", "run.train_steps=5", "--set", "meta.explore_steps=50", "--set", "meta.eval_steps=100",
-        "--set", "env.episode_length=60",
-        # A fixed replay capacity: the sweeps below run one program whatever their budget (the pytest run's
-        # compile cache, conftest.py, compiles it once).
-        "--set", "run.buffer_size=900"]
+# A fixed replay capacity: the sweeps below run one program whatever their budget (the pytest run's compile
+# cache, conftest.py, compiles it once).
+TINY = [*tiny_argv("meta", **{"run.buffer_size": 900}), "--steps=600"]
 GRID = ["--grid", "meta.lr=1e-4,1e-2", "--grid", "ddpg.tau=0.01,0.5"]
 
 
@@ -42,7 +37,7 @@ def test_a_sweep_equals_separate_runs_of_its_settings(tmp_path):
     for k in (3,):  # (1e-2, 0.5): the corner furthest from the defaults
         values = stored["settings"][k]["values"]
         single = str(tmp_path / f"run{k}")
-        argv = [a for a in TINY if a != "--quiet"] + ["--quiet", "--no-plot", "--out", single]
+        argv = [*TINY, "--out", single]
         for field, value in values.items():
             argv += ["--set", f"{field}={value}"]
         assert run.main(argv) == 0
@@ -67,7 +62,7 @@ def test_fields_that_change_the_program_are_found_and_split_into_programs(tmp_pa
               "meta.teacher_steps", "run.train_steps", "meta.normalize_meta_reward"]
     assert structural_fields(cfg, env, fields) == ["ddpg.hidden", "meta.teacher", "meta.teacher_steps",
                                                    "run.train_steps", "meta.normalize_meta_reward"]
-    a = {**run.RUN_ARGS, "seeds": 2, "steps": 600, "overrides": TINY[TINY.index("--set"):][1::2]}
+    a = {**run.RUN_ARGS, "seeds": 2, "steps": 600, "overrides": TINY[TINY.index("--set"):-1][1::2]}
     settings, configs, groups, _ = sweep.plan(a, {"meta.lr": ["1e-4", "1e-3"], "meta.teacher": ["independent", "variance"]})
     assert len(settings) == 4
     assert [(g["settings"], g["batched"], g["fixed"]) for g in groups] == [

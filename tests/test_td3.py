@@ -1,4 +1,4 @@
-"""TD3 (metapg_jax/td3.py): the clipped double-Q target, target smoothing, delayed actor and target
+"""TD3 (metapg_jax/strategies/td3.py): the clipped double-Q target, target smoothing, delayed actor and target
 updates, and TD3 as the student of both explorers and of the command line."""
 
 import json
@@ -10,8 +10,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from metapg_jax.config import DDPGConfig, TD3Config, make_config
-from metapg_jax.td3 import TD3
+from metapg_jax.config import DDPGConfig, make_config
+from metapg_jax.strategies.td3 import TD3, TD3Config
+from tests.helpers import tiny_argv
 from metapg_jax.train import make_train, seed_keys, vmap_seeds
 from metapg_jax.types import Transition
 from tests import golden
@@ -144,11 +145,8 @@ def test_meta_on_td3_resumed_gives_the_numbers_of_one_run(tmp_path):
     from experiments import run
     from metapg_jax import load_policy
 
-    tiny = ["--env=pendulum", "--method=meta", "--student=td3", "--seeds=2", "--quiet", "--no-plot",
-            "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "meta.hidden=16,16",
-            "--set", "run.eval_episodes=2", "--set", "meta.visit_samples=16",
-            # A fixed replay capacity: the three calls run one program (the pytest run's compile cache loads it).
-            "--set", "run.buffer_size=900"]
+    # A fixed replay capacity: the three calls run one program (the pytest run's compile cache loads it).
+    tiny = [*tiny_argv("meta", **{"run.buffer_size": 900}), "--student=td3"]
     one, two = str(tmp_path / "one"), str(tmp_path / "two")
     assert run.main([*tiny, "--steps=900", "--out", one]) == 0
     assert run.main([*tiny, "--steps=600", "--out", two]) == 0

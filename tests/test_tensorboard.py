@@ -10,17 +10,14 @@ import numpy as np
 import pytest
 
 from experiments import run
+from metapg_jax import strategy
 from metapg_jax.host import tb_events
 from metapg_jax.host.checkpoint import Checkpointer
+from tests.helpers import tiny_argv
 
 # A tiny Pendulum Meta run: cycles of 50 + 100 env steps, two per 300-step chunk.
 STEPS_PER_CYCLE = 150
-TINY = ["--env=pendulum", "--method=meta", "--seeds=2", "--quiet", "--no-plot", "--checkpoint-every=1",
-        "--tensorboard"]
-for _item in ("run.eval_every=300", "run.eval_episodes=2", "run.train_steps=5", "ddpg.hidden=16,16",
-              "ddpg.batch_size=16", "meta.hidden=16,16", "meta.explore_steps=50", "meta.eval_steps=100",
-              "meta.visit_samples=16", "env.episode_length=60"):
-    TINY += ["--set", _item]
+TINY = [*tiny_argv("meta"), "--checkpoint-every=1", "--tensorboard"]
 NOT_SCALARS = ("seed", "chunk", "cycle", "env_steps")
 
 
@@ -83,7 +80,7 @@ def assert_events_match_jsonl(out, num_seeds, chunks):
         # The teacher's per-cycle metrics, at the env steps stored by the end of each cycle.
         mine_cycles = [r for r in cycles if r["seed"] == seed]
         assert [r["cycle"] for r in mine_cycles] == list(range(chunks * 300 // STEPS_PER_CYCLE))
-        assert set(teacher) == {f"teacher/{k}" for k in run.TEACHER_CYCLE_METRICS}
+        assert set(teacher) == {f"teacher/{k}" for k in strategy.explorer("meta").cycle_metrics}
         assert teacher == _expected(mine_cycles, lambda r: (r["cycle"] + 1) * STEPS_PER_CYCLE, "teacher/")
         assert [s for s, _ in teacher["teacher/meta_reward"]][1::2] == steps  # a chunk's last cycle ends at its eval
 

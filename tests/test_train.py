@@ -163,7 +163,8 @@ def test_paper_schedules_per_task(task):
 def test_tuned_preset_is_the_paper_schedule_with_ddpgs_update_ratio_and_one_teacher_step(task):
     from experiments.ablation import config_diff
     from experiments.grid import BASELINES
-    from metapg_jax.config import PRESETS, TUNED_META, to_dict
+    from metapg_jax.config import PRESETS, to_dict
+    from metapg_jax.strategies.meta import TUNED_META
 
     assert set(BASELINES) == set(PRESETS)
     paper, tuned = make_config(task, "meta"), make_config(task, "meta", "tuned")

@@ -20,6 +20,8 @@ from typing import Callable
 import numpy as np
 
 FORMAT = "metapg-jax-policy/1"
+# The acting policies the NumPy loader computes (a student declares its own: metapg_jax.strategy, architecture).
+KINDS = ("mlp",)
 
 
 def _flatten(tree, prefix=""):
@@ -37,7 +39,14 @@ def export_policies(path: str, config, student_actor, normalizer, action_low=Non
     """Writes the actors of all seeds (leading seed axis) and their normalisers to ``path`` atomically."""
     from metapg_jax import config as config_lib
     from metapg_jax import normalizer as norm_lib
+    from metapg_jax import strategy
+    from metapg_jax.actor_critic import actor_architecture
 
+    describe_actor = strategy.student(config.student).architecture or actor_architecture
+    architecture = describe_actor(config)
+    if architecture.get("kind") not in KINDS:
+        raise ValueError(f"policy.npz cannot describe a {architecture.get('kind')!r} policy (student "
+                         f"{config.student!r}); the NumPy loader knows: {', '.join(KINDS)}")
     actor = _flatten(student_actor["params"] if "params" in student_actor else student_actor)
     mean, std = norm_lib.mean_std(normalizer)
     num_seeds = int(np.asarray(mean).shape[0])
@@ -46,16 +55,11 @@ def export_policies(path: str, config, student_actor, normalizer, action_low=Non
         "num_seeds": num_seeds,
         "env": config.env.name,
         "source": config.env.source,
-        "hidden": list(config.ddpg.hidden),
-        "layer_norm": bool(config.ddpg.layer_norm),
-        "layer_norm_epsilon": 1e-6,
-        "normalize_obs": bool(config.ddpg.normalize_obs),
-        "obs_clip": float(config.ddpg.obs_clip),
+        **architecture,
         "obs_size": int(np.asarray(mean).shape[-1]),
         "action_size": int(actor["out/bias"].shape[-1]),
         "action_low": None if action_low is None else np.asarray(action_low).tolist(),
         "action_high": None if action_high is None else np.asarray(action_high).tolist(),
-        "activation": "relu", "output": "tanh",
         "config": config_lib.to_dict(config),
     }
     arrays = {f"actor/{k}": v for k, v in actor.items()}
@@ -78,6 +82,8 @@ def load_policy(path: str, seed: int = 0) -> Callable[[np.ndarray], np.ndarray]:
         desc = json.loads(bytes(f["description"]).decode())
         if desc.get("format") != FORMAT:
             raise ValueError(f"{path} is not a {FORMAT} file")
+        if desc.get("kind", "mlp") not in KINDS:  # (files written before "kind" existed hold MLPs)
+            raise ValueError(f"{path} holds a {desc['kind']!r} policy; this loader computes: {', '.join(KINDS)}")
         if not 0 <= seed < desc["num_seeds"]:
             raise ValueError(f"seed {seed} out of range: {path} holds {desc['num_seeds']} seeds")
         p = {k[len("actor/"):]: f[k][seed].astype(np.float64) for k in f.files if k.startswith("actor/")}

@@ -13,7 +13,8 @@ All three as in the 2018 OpenAI-baselines DDPG (``baselines/ddpg/noise.py``,
   action distance sqrt(mean((mu - mu~)^2)) exceeds the desired stddev, and
   multiplied by it otherwise.
 
-``NoiseExplorer`` is the DDPG baseline's explorer (``metapg_jax.explorers``): its cycle is
+``NoiseExplorer`` is the DDPG baseline's explorer, registered as ``ddpg`` (``--method=ddpg``; its group is
+``noise``, its shortcut ``--noise``): its cycle is
 ``rollout_steps`` steps of the noisy actor, stored, then ``train_steps`` student updates (with the
 stddev adaptation between blocks of ``adapt_every`` of them for adaptive parameter noise).
 """
@@ -21,19 +22,32 @@ stddev adaptation between blocks of ``adapt_every`` of them for adaptive paramet
 from __future__ import annotations
 
 import dataclasses
+import math
 from typing import Callable
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
+from metapg_jax import strategy
 from metapg_jax import visits as visits_lib
-from metapg_jax.config import NoiseConfig
 from metapg_jax.loop import TrainState, Trainer
 from metapg_jax.networks import is_layer_norm_path
 from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.seeds import per_seed_cond
 from metapg_jax.types import Params
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseConfig:
+    """Exploration noise of the DDPG baseline (the ``noise`` group; other explorers leave it unused)."""
+
+    kind: str = "adaptive-param"   # 'normal', 'ou', 'adaptive-param' or 'none'
+    stddev: float = 0.2            # normal/ou sigma; adaptive-param: initial and desired action stddev
+    ou_theta: float = 0.15         # OU mean reversion (baselines)
+    ou_dt: float = 1e-2            # OU time step (baselines)
+    adapt_every: int = 50          # adaptive-param: updates between stddev adaptations
+    adapt_coef: float = 1.01       # adaptive-param: multiplicative adaptation factor
 
 
 @struct.dataclass
@@ -142,3 +156,45 @@ class NoiseExplorer:
         metrics = {**train_metrics, "train_return": ret_mean, "train_episodes": n_eps,
                    "param_noise_stddev": state.explorer.stddev, "param_noise_distance": state.explorer.distance}
         return state, metrics
+
+
+NOISES = ("normal", "ou", "adaptive-param", "none")
+
+
+def _group_defaults(config) -> NoiseConfig:
+    """The modern preset explores with Gaussian noise 0.1 (the paper preset: adaptive parameter noise 0.2)."""
+    return NoiseConfig(kind="normal", stddev=0.1) if config.preset == "modern" else NoiseConfig()
+
+
+def _validate(config) -> None:
+    n = config.noise
+    if n.kind not in NOISES:
+        raise ValueError(f"unknown noise {n.kind!r}; valid noises: {', '.join(NOISES)}")
+    if n.kind != "none":
+        _positive("noise.stddev", n.stddev)
+    _positive("noise.adapt_every", n.adapt_every)
+    if n.kind == "ou":
+        _positive("noise.ou_dt", n.ou_dt)
+        if not (math.isfinite(n.ou_theta) and n.ou_theta >= 0):
+            raise ValueError(f"noise.ou_theta must be a finite number >= 0, got {n.ou_theta!r}")
+    if n.kind == "adaptive-param" and not (math.isfinite(n.adapt_coef) and n.adapt_coef >= 1):
+        raise ValueError(f"noise.adapt_coef must be a finite number >= 1 (the stddev is multiplied or divided by "
+                         f"it; 1 keeps it fixed), got {n.adapt_coef!r}")
+    run = config.run
+    if run.method == NAME and run.warmup_steps and run.warmup_steps >= run.total_steps:
+        raise ValueError(f"run.warmup_steps={run.warmup_steps} is not below the budget of {run.total_steps} "
+                         f"env steps: the DDPG run would act at random throughout (lower it with "
+                         f"--set run.warmup_steps=N, or raise --steps)")
+
+
+def _positive(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+NAME = "ddpg"
+strategy.register_explorer(
+    NAME, lambda config: NoiseExplorer(config.noise), group=NoiseConfig, group_name="noise",
+    group_defaults=_group_defaults, validate=_validate, flag=("noise", "kind"),
+    label=lambda config: config.noise.kind,
+    summary="the DDPG baselines' exploration: the student's actor plus noise (--noise)")

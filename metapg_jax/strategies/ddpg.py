@@ -16,16 +16,15 @@ do not.
 from __future__ import annotations
 
 import dataclasses
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
 import optax
 from flax import struct
 
-from metapg_jax import normalizer as norm_lib
-from metapg_jax.config import DDPGConfig
-from metapg_jax.networks import Actor, Critic, is_hidden_kernel_path
+from metapg_jax import strategy
+from metapg_jax.actor_critic import ActorCritic
+from metapg_jax.networks import is_hidden_kernel_path
 from metapg_jax.types import Params, Transition
 
 
@@ -37,43 +36,6 @@ class StudentState:
     target_critic: Params
     actor_opt: optax.OptState
     critic_opt: optax.OptState
-
-
-@dataclasses.dataclass(frozen=True)
-class ActorCritic:
-    """What every student here shares (DDPG, ``metapg_jax.td3.TD3``): the actor and critic networks and
-    optimisers of the ``ddpg`` config group, observation normalisation and acting. Pure and jittable."""
-
-    cfg: DDPGConfig
-    obs_size: int
-    action_size: int
-
-    @property
-    def actor_net(self) -> Actor:
-        return Actor(self.action_size, tuple(self.cfg.hidden), self.cfg.layer_norm, self.cfg.final_init)
-
-    @property
-    def critic_net(self) -> Critic:
-        return Critic(tuple(self.cfg.hidden), self.cfg.layer_norm, self.cfg.critic_action_layer, self.cfg.final_init)
-
-    @property
-    def actor_opt(self) -> optax.GradientTransformation:
-        return optax.adam(self.cfg.actor_lr)
-
-    @property
-    def critic_opt(self) -> optax.GradientTransformation:
-        return optax.adam(self.cfg.critic_lr)
-
-    # -- acting ---------------------------------------------------------------
-    def normalize(self, normalizer: norm_lib.NormalizerState, obs: jax.Array) -> jax.Array:
-        return norm_lib.normalize(normalizer if self.cfg.normalize_obs else None, obs, self.cfg.obs_clip)
-
-    def actor_apply(self, actor: Params, obs_normalized: jax.Array) -> jax.Array:
-        return self.actor_net.apply(actor, obs_normalized)
-
-    def deterministic_policy(self, actor: Params, normalizer) -> Callable[[jax.Array], jax.Array]:
-        """mu(s) on raw observations: what evaluation and the look-ahead rollout D1 use."""
-        return lambda obs: self.actor_apply(actor, self.normalize(normalizer, obs))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,3 +86,8 @@ class DDPG(ActorCritic):
             target_critic=jax.tree.map(soft, student.target_critic, critic),
             actor_opt=actor_opt, critic_opt=critic_opt)
         return student, {"critic_loss": c_loss, "actor_loss": a_loss, **aux}
+
+
+strategy.register_student(
+    "ddpg", lambda config, obs_size, action_size: DDPG(config.ddpg, obs_size, action_size),
+    summary="DDPG (Lillicrap et al., 2016), as in the 2018 OpenAI baselines")

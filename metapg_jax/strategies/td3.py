@@ -1,4 +1,4 @@
-"""The TD3 student (Fujimoto, van Hoof and Meger, 2018), with the same interface as ``metapg_jax.ddpg.DDPG``.
+"""The TD3 student (Fujimoto, van Hoof and Meger, 2018), with the same interface as DDPG (``metapg_jax.strategies.ddpg``).
 
 Per update, on a minibatch (s, a, r, s', terminated) with observations normalised by the running
 normaliser (actions are in [-1, 1], so the action bound is 1):
@@ -26,11 +26,21 @@ import jax.numpy as jnp
 import optax
 from flax import struct
 
-from metapg_jax.config import TD3Config
-from metapg_jax.ddpg import ActorCritic
+from metapg_jax import strategy
+from metapg_jax.actor_critic import ActorCritic
 from metapg_jax.networks import is_hidden_kernel_path
 from metapg_jax.seeds import per_seed_cond
 from metapg_jax.types import Params, Transition
+
+
+@dataclasses.dataclass(frozen=True)
+class TD3Config:
+    """TD3's own settings (Fujimoto et al., 2018; in normalised action units); the networks, optimisers,
+    batch, tau and gamma are the ``ddpg`` group's."""
+
+    policy_noise: float = 0.2      # target-policy smoothing noise stddev
+    noise_clip: float = 0.5        # ... clipped to +-noise_clip
+    policy_delay: int = 2          # actor and target updates every policy_delay critic updates
 
 
 @struct.dataclass
@@ -49,7 +59,7 @@ class TD3State:
 @dataclasses.dataclass(frozen=True)
 class TD3(ActorCritic):
     """The TD3 student (module docstring): DDPG's networks, optimisers and acting
-    (``metapg_jax.ddpg.ActorCritic``), its own state and update. Pure and jittable."""
+    (``metapg_jax.actor_critic.ActorCritic``), its own state and update. Pure and jittable."""
 
     td3: TD3Config = TD3Config()
 
@@ -118,3 +128,24 @@ class TD3(ActorCritic):
         state = per_seed_cond(due, delayed, lambda s: s, state)
         state = state.replace(step=state.step + 1)
         return state, {"critic_loss": c_loss, "actor_loss": state.actor_loss, **aux}
+
+
+def _schedule(config):
+    """Under the modern preset: the TD3 authors' 25k uniformly random steps before the first update (their
+    ``start_timesteps``). An explorer that explores from the first step (the teacher) sets its own warm-up
+    after this."""
+    if config.preset != "modern":
+        return config
+    return config.replace(run=dataclasses.replace(config.run, warmup_steps=25_000))
+
+
+def _validate(config) -> None:
+    t = config.td3
+    if t.policy_noise < 0 or t.noise_clip < 0 or t.policy_delay <= 0:
+        raise ValueError("td3.policy_noise and td3.noise_clip must be >= 0 and td3.policy_delay positive")
+
+
+strategy.register_student(
+    "td3", lambda config, obs_size, action_size: TD3(config.ddpg, obs_size, action_size, td3=config.td3),
+    group=TD3Config, schedule=_schedule, validate=_validate,
+    summary="TD3 (Fujimoto et al., 2018): twin critics, target smoothing, delayed actor")

@@ -36,22 +36,65 @@ Our readings where the paper gives no number or procedure (also in docs/algorith
   on IP/HalfCheetah, i.e. whole episodes).
 * The teacher's env is not reset between cycles: D0 continues its episodes.
 
-``TeacherExplorer`` is this cycle as an explorer (``metapg_jax.explorers``): the teacher explores, and
-what it does with its data is the look-ahead, the meta reward and the REINFORCE step.
+``TeacherExplorer`` is this cycle as an explorer, registered as ``meta`` (``--method=meta``; its group is
+``meta``, its shortcut ``--teacher``): the teacher explores, and what it does with its data is the
+look-ahead, the meta reward and the REINFORCE step. This file also holds the paper's schedule per task
+(``PAPER_SCHEDULE``) and what each preset changes for the teacher.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
+from typing import Any
 
 import jax
 import jax.numpy as jnp
 
+from metapg_jax import strategy
 from metapg_jax import visits as visits_lib
-from metapg_jax.config import MetaConfig
 from metapg_jax.loop import TrainState, Trainer, flatten_time, train_updates
 from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.teacher import Teacher, TeacherState
+
+
+@dataclasses.dataclass(frozen=True)
+class MetaConfig:
+    """The teacher and Algorithm 1's schedule (../shared/DESIGN.md, paper section 4 and 5.1)."""
+
+    teacher: str = "independent"    # 'independent' (own mean + log-std MLPs) or 'variance' (student mean)
+    hidden: tuple[int, ...] = (64, 64)
+    layer_norm: bool = True         # the paper uses LayerNorm in its policy networks
+    # Variance teacher: log-std MLP (True, our default, like the log-std network of the paper's
+    # section 5.1) or one learned vector (False, the paper's design (i), sigma^2 I).
+    state_dependent_std: bool = True
+    init_log_std: float = -0.5      # initial log-std of the teacher (ours; the paper does not say)
+    min_log_std: float = -5.0       # log-std bounds (ours)
+    max_log_std: float = 1.0
+    lr: float = 1e-4                # teacher Adam learning rate (paper); 0 = frozen at its init (a control)
+    explore_steps: int = 100        # |D0| per cycle
+    eval_steps: int = 200           # |D1| per cycle, per eval env
+    teacher_steps: int = 1          # REINFORCE Adam steps per cycle
+    # DDPG updates of the look-ahead copy on D0; 0 = run.train_steps (50; 500 on IP/HalfCheetah).
+    # The paper says "one or a small number of steps" without a number; ours is a reading.
+    lookahead_steps: int = 0
+    eval_envs: int = 1              # parallel envs for D1
+    student_from: str = "pi"        # student update starts from pi (paper) or pi'
+    baseline: str = "lookahead"     # R_hat(pi) for the next cycle: R_hat(pi') or a fresh rollout
+    normalize_meta_reward: bool = False  # running mean/std of the meta reward (our addition)
+
+
+# The paper's schedule per task (section 5.1): |D0|, |D1|, student updates per cycle, REINFORCE steps per
+# cycle. Tasks not named here: 100, 200, 50, 1.
+PAPER_SCHEDULE = {
+    "inverted_pendulum": dict(explore_steps=1000, eval_steps=2000, train_steps=500, teacher_steps=100),
+    "halfcheetah": dict(explore_steps=1000, eval_steps=2000, train_steps=500, teacher_steps=100),
+}
+_DEFAULT_SCHEDULE = dict(explore_steps=100, eval_steps=200, train_steps=50, teacher_steps=1)
+
+
+def paper_schedule(task: str) -> dict[str, int]:
+    return PAPER_SCHEDULE.get(task, _DEFAULT_SCHEDULE)
 
 
 def make_teacher(trainer: Trainer) -> Teacher:
@@ -181,3 +224,107 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
         "teacher_student_distance": jnp.sqrt(jnp.mean(jnp.square(d0.action - student_action))),
     }
     return state, metrics
+
+
+# ---------------------------------------------------------------------------------------------- the strategy
+NAME = "meta"
+TEACHERS = ("independent", "variance")
+STUDENT_FROM = ("pi", "lookahead")
+BASELINES = ("lookahead", "fresh")
+# The tuned preset's changes to the paper preset's Meta schedule, each from a screen cell at 300k steps
+# (results/screen/README.md); applied after the overrides, a field that --set names is left as set.
+TUNED_META = {
+    "run.train_steps": "half the cycle's stored steps (DDPG's 50 updates per 100 stored steps)",
+    "meta.lookahead_steps": "the paper preset's student updates per cycle (50; 500 on IP/HalfCheetah)",
+    "meta.teacher_steps": "1 (the paper preset: 100 on IP/HalfCheetah)",
+}
+
+
+def _group_defaults(config) -> MetaConfig:
+    """The task's paper schedule; under the modern preset a 256-256 teacher without LayerNorm."""
+    s = paper_schedule(config.env.name)
+    meta = MetaConfig(explore_steps=s["explore_steps"], eval_steps=s["eval_steps"], teacher_steps=s["teacher_steps"])
+    if config.preset == "modern":
+        meta = dataclasses.replace(meta, hidden=(256, 256), layer_norm=False)
+    return meta
+
+
+def _schedule(config):
+    """Chosen as the explorer: the task's student updates per cycle under the paper and tuned presets (a 3000-step
+    cycle has 500 on IP/HalfCheetah; the DDPG baseline keeps baselines' 50 per 100-step cycle); no random
+    warm-up under the modern preset (the teacher is the exploration from the first step)."""
+    run = config.run
+    if config.preset in ("paper", "tuned"):
+        run = dataclasses.replace(run, train_steps=paper_schedule(config.env.name)["train_steps"])
+    else:
+        run = dataclasses.replace(run, warmup_steps=0)
+    return config.replace(run=run)
+
+
+def _derive(config, overrides: dict[str, Any]):
+    """After --set: under the modern preset one student update per stored step and one look-ahead update per D0
+    step; under the tuned preset ``TUNED_META``. A field that --set names keeps its value."""
+    run, meta = config.run, config.meta
+    if config.preset == "modern":
+        if "run.train_steps" not in overrides:
+            run = dataclasses.replace(run, train_steps=steps_per_cycle(config))
+        if "meta.lookahead_steps" not in overrides:
+            meta = dataclasses.replace(meta, lookahead_steps=meta.explore_steps)
+    if config.preset == "tuned":
+        if "meta.lookahead_steps" not in overrides:
+            meta = dataclasses.replace(meta, lookahead_steps=meta.lookahead_steps or run.train_steps)
+        if "meta.teacher_steps" not in overrides:
+            meta = dataclasses.replace(meta, teacher_steps=1)
+        if "run.train_steps" not in overrides:
+            run = dataclasses.replace(run, train_steps=max(1, steps_per_cycle(config) // 2))
+    return config.replace(run=run, meta=meta)
+
+
+def steps_per_cycle(config) -> int:
+    """D0, D1 in every eval env, and D2 with ``baseline='fresh'``: every step a cycle stores."""
+    m = config.meta
+    fresh = m.eval_steps * m.eval_envs if m.baseline == "fresh" else 0
+    return m.explore_steps + m.eval_steps * m.eval_envs + fresh
+
+
+def _positive(name: str, value: float) -> None:
+    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
+
+
+def _validate(config) -> None:
+    m = config.meta
+    if m.teacher not in TEACHERS:
+        raise ValueError(f"unknown teacher {m.teacher!r}; valid teachers: {', '.join(TEACHERS)}")
+    if m.student_from not in STUDENT_FROM:
+        raise ValueError(f"meta.student_from must be one of {', '.join(STUDENT_FROM)}, got {m.student_from!r}")
+    if m.baseline not in BASELINES:
+        raise ValueError(f"meta.baseline must be one of {', '.join(BASELINES)}, got {m.baseline!r}")
+    if m.lookahead_steps < 0:
+        raise ValueError("meta.lookahead_steps must be >= 0")
+    if config.run.method != NAME:
+        return
+    for name in ("explore_steps", "eval_steps", "teacher_steps", "eval_envs"):
+        _positive(f"meta.{name}", getattr(m, name))
+    # meta.lr = 0 freezes the teacher at its initialisation (a control: the data without the learning).
+    if not (math.isfinite(m.lr) and m.lr >= 0):
+        raise ValueError(f"meta.lr must be a finite number >= 0 (0 = a frozen teacher), got {m.lr!r}")
+    if not m.hidden or min(m.hidden) <= 0:
+        raise ValueError(f"meta.hidden must be a non-empty tuple of positive widths, got {m.hidden}")
+    if not m.min_log_std < m.init_log_std < m.max_log_std:
+        raise ValueError("meta log-std bounds must satisfy min_log_std < init_log_std < max_log_std")
+
+
+CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_log_std", "teacher_entropy",
+                 "teacher_student_distance")
+
+strategy.register_explorer(
+    NAME, lambda config: TeacherExplorer(config.meta), group=MetaConfig, group_defaults=_group_defaults,
+    schedule=_schedule, derive=_derive, validate=_validate, steps_per_cycle=steps_per_cycle,
+    cycle_metrics=CYCLE_METRICS,
+    cycle_panels=(("meta_reward", "meta reward R_hat(pi') - R_hat(pi)"), ("teacher_log_std", "teacher mean log-std"),
+                  (("r_hat_lookahead", "r_hat_pi"), "R_hat(pi') and R_hat(pi)"),
+                  ("teacher_student_distance", "RMS teacher - student action on D0")),
+    plot_file="teacher.png", label=lambda config: config.meta.teacher, flag=("teacher", "teacher"),
+    moved={"visit_samples": "run.visit_samples"},
+    summary="the paper's learned teacher (Algorithm 1; --teacher)")

@@ -1,0 +1,224 @@
+"""The plug-in contract: what a student and an explorer are, what else a strategy declares, and the one
+registry per kind.
+
+A *strategy* is a student (the off-policy learner) or an explorer (who collects its data). Each is one file
+that defines the class, its config group and its schedule, and registers a spec here. The built-in ones are
+the modules of ``metapg_jax.strategies``, found and imported the first time the registry is asked
+(:func:`load_builtins`; nothing else names them); a user's file registers itself when ``--plugin FILE.py``
+imports it. The rest of the package asks the registry and never names a strategy:
+``config`` and ``presets`` for the groups, schedules and checks, ``train`` for the objects, the commands
+for the cycle metrics, labels and flags.
+
+A strategy's contract in brief:
+
+* the object (``make``): a :class:`Student` or an :class:`Explorer` below, pure and jittable;
+* its config group (``group``: a frozen dataclass, or None): ``config.<name>`` of every config, stored in
+  config.json, set with ``--set <name>.<field>=V``, type-checked by ``config.override``;
+* ``group_defaults(config) -> group``: the group's defaults for the config's task and preset (every config
+  has every registered group, the chosen strategies' and the others');
+* ``schedule(config) -> config``: what choosing the strategy changes elsewhere (before ``--set``), and
+  ``derive(config, overrides) -> config`` (after ``--set``: fields derived from others, unless set);
+* ``validate(config)``: one-line ``ValueError`` for bad values, before anything compiles;
+* students: ``architecture(config)``, how the exported ``policy.npz`` describes the acting policy;
+* explorers: ``steps_per_cycle(config)`` (env steps one cycle stores; default ``run.rollout_steps``), the
+  per-cycle metrics written to ``cycles.jsonl`` (``cycle_metrics``) and the panels of their plot, a label
+  for run names, and a command-line shortcut for one field (``flag``, e.g. ``--teacher``).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+import pkgutil
+from typing import Any, Callable, Protocol
+
+
+class Student(Protocol):
+    """An off-policy learner. All methods are pure and jittable; anything random lives in the state (a key), so
+    that Algorithm 1's look-ahead copy of the state copies it.
+
+    Attributes:
+      obs_size, action_size: the env's sizes (actions are in [-1, 1]).
+    """
+
+    obs_size: int
+    action_size: int
+
+    def init(self, key: Any) -> Any:
+        """Args: a PRNG key. Returns: the state, a pytree whose ``.actor`` holds the actor's parameters (what
+        exploration perturbs or reads, what is evaluated and exported) and, if it has one, ``.critic``."""
+
+    def normalize(self, normalizer: Any, obs: Any) -> Any:
+        """Args: the running observation normaliser, raw observations. Returns: what the networks see."""
+
+    def actor_apply(self, actor: Any, obs_normalized: Any) -> Any:
+        """Args: actor parameters, normalised observations. Returns: actions in [-1, 1]."""
+
+    def deterministic_policy(self, actor: Any, normalizer: Any) -> Callable[[Any], Any]:
+        """Returns: ``obs -> action`` on raw observations (evaluation, the look-ahead rollout D1)."""
+
+    def update(self, state: Any, normalizer: Any, batch: Any) -> tuple[Any, dict]:
+        """One update on a replay minibatch (``metapg_jax.types.Transition``).
+
+        Returns: (the new state, a dict of scalar metrics: chunk means in ``metrics.jsonl``)."""
+
+
+class Explorer(Protocol):
+    """Who collects the student's data: one *cycle* of collecting, storing and training, as a scan body."""
+
+    def init(self, trainer: Any, student_state: Any, key: Any) -> Any:
+        """Args: the ``metapg_jax.loop.Trainer``, the freshly initialised student state, a PRNG key.
+        Returns: the explorer's part of a seed's ``TrainState`` (``state.explorer``; a pytree)."""
+
+    def cycle(self, trainer: Any, state: Any) -> tuple[Any, dict]:
+        """One cycle: collect in ``trainer.env`` (``metapg_jax.rollout.rollout``), ``trainer.store`` the data
+        (exactly ``steps_per_cycle`` env steps), train the student (``trainer.student_updates``).
+
+        Args: the trainer, a seed's ``TrainState``. Returns: (the new state, a dict of scalar metrics)."""
+
+
+def _keep(config: Any, *_: Any) -> Any:
+    return config
+
+
+def _no_checks(config: Any) -> None:
+    return None
+
+
+@dataclasses.dataclass(frozen=True)
+class StudentSpec:
+    """A student by name (``--student``). ``make(config, obs_size, action_size) -> Student``."""
+
+    name: str
+    make: Callable[[Any, int, int], Student]
+    group: type | None = None                                   # its config group's dataclass; named ``name``
+    group_defaults: Callable[[Any], Any] | None = None          # config -> group (default: ``group()``)
+    schedule: Callable[[Any], Any] = _keep                      # config -> config, when chosen, before --set
+    derive: Callable[[Any, dict], Any] = _keep                  # (config, overrides) -> config, after --set
+    validate: Callable[[Any], None] = _no_checks
+    # config -> how ``policy.npz`` describes the acting policy to its NumPy loader (``metapg_jax.host.policy``);
+    # None: the ``ActorCritic`` actor of the ``ddpg`` group (``metapg_jax.actor_critic.actor_architecture``).
+    architecture: Callable[[Any], dict] | None = None
+    summary: str = ""                                           # a few words for --help
+
+
+@dataclasses.dataclass(frozen=True)
+class ExplorerSpec:
+    """An explorer by name (``--method``). ``make(config) -> Explorer``."""
+
+    name: str
+    make: Callable[[Any], Explorer]
+    group: type | None = None
+    group_name: str | None = None                               # default: ``name``
+    group_defaults: Callable[[Any], Any] | None = None
+    schedule: Callable[[Any], Any] = _keep
+    derive: Callable[[Any, dict], Any] = _keep
+    validate: Callable[[Any], None] = _no_checks
+    steps_per_cycle: Callable[[Any], int] | None = None         # default: run.rollout_steps
+    cycle_metrics: tuple[str, ...] = ()                         # per cycle to cycles.jsonl (and TensorBoard)
+    # Panels of the per-cycle plot (``plot_file`` in the run folder): (metric or metrics, title) each.
+    cycle_panels: tuple[tuple[Any, str], ...] = ()
+    plot_file: str = "cycles.png"
+    label: Callable[[Any], str] | None = None                   # config -> detail of the run's name
+    flag: tuple[str, str] | None = None                         # (command-line option, field of its group)
+    moved: dict[str, str] = dataclasses.field(default_factory=dict)  # old field of its group -> new dotted name
+    summary: str = ""
+
+    @property
+    def group_key(self) -> str | None:
+        return (self.group_name or self.name) if self.group is not None else None
+
+
+_STUDENTS: dict[str, StudentSpec] = {}
+_EXPLORERS: dict[str, ExplorerSpec] = {}
+_LOADED = False
+
+
+def load_builtins() -> None:
+    """Imports every module of ``metapg_jax.strategies`` once (each registers its spec)."""
+    global _LOADED
+    if _LOADED:
+        return
+    _LOADED = True
+    package = importlib.import_module("metapg_jax.strategies")
+    for module in sorted(m.name for m in pkgutil.iter_modules(package.__path__)):
+        importlib.import_module(f"metapg_jax.strategies.{module}")
+
+
+def _check_group(key: str | None, owner: str) -> None:
+    if key is None:
+        return
+    for spec in [*_STUDENTS.values(), *_EXPLORERS.values()]:
+        other = spec.group_key if isinstance(spec, ExplorerSpec) else (spec.name if spec.group else None)
+        if other == key and spec.name != owner:
+            raise ValueError(f"config group {key!r} is already registered by {spec.name!r}")
+
+
+def register_student(spec: StudentSpec | str, make: Callable | None = None, **fields: Any) -> StudentSpec:
+    """Registers a student: a :class:`StudentSpec`, or its name, ``make`` and spec fields. A name registered
+    again is replaced (a plug-in re-imported)."""
+    spec = spec if isinstance(spec, StudentSpec) else StudentSpec(spec, make, **fields)
+    _check_group(spec.name if spec.group else None, spec.name)
+    _STUDENTS[spec.name] = spec
+    return spec
+
+
+def register_explorer(spec: ExplorerSpec | str, make: Callable | None = None, **fields: Any) -> ExplorerSpec:
+    """Registers an explorer: an :class:`ExplorerSpec`, or its name, ``make`` and spec fields."""
+    spec = spec if isinstance(spec, ExplorerSpec) else ExplorerSpec(spec, make, **fields)
+    _check_group(spec.group_key, spec.name)
+    _EXPLORERS[spec.name] = spec
+    return spec
+
+
+def students() -> dict[str, StudentSpec]:
+    load_builtins()
+    return dict(_STUDENTS)
+
+
+def explorers() -> dict[str, ExplorerSpec]:
+    load_builtins()
+    return dict(_EXPLORERS)
+
+
+def student(name: str) -> StudentSpec:
+    """The student registered as ``name``; a one-line ``ValueError`` naming the valid ones otherwise."""
+    specs = students()
+    if name not in specs:
+        raise ValueError(f"unknown student {name!r}; valid students: {', '.join(sorted(specs))}")
+    return specs[name]
+
+
+def explorer(name: str) -> ExplorerSpec:
+    """The explorer registered as ``name`` (``--method``); a one-line ``ValueError`` otherwise."""
+    specs = explorers()
+    if name not in specs:
+        raise ValueError(f"unknown method {name!r}; valid methods: {', '.join(sorted(specs))}")
+    return specs[name]
+
+
+def groups() -> dict[str, tuple[type, Callable[[Any], Any] | None]]:
+    """Every registered strategy's config group: {name: (dataclass, group_defaults)}, in registration order."""
+    out = {}
+    for spec in students().values():
+        if spec.group is not None:
+            out[spec.name] = (spec.group, spec.group_defaults)
+    for spec in explorers().values():
+        if spec.group is not None:
+            out[spec.group_key] = (spec.group, spec.group_defaults)
+    return out
+
+
+def moved_fields() -> dict[str, str]:
+    """Dotted names of fields that moved out of a strategy's group -> where they are now (old configs and
+    ``--set`` spellings keep working)."""
+    out = {}
+    for spec in explorers().values():
+        out.update({f"{spec.group_key}.{old}": new for old, new in spec.moved.items()})
+    return out
+
+
+def flags() -> dict[str, tuple[str, str]]:
+    """Command-line shortcuts: {option: (explorer name, dotted field)}, e.g. ``--teacher``."""
+    return {spec.flag[0]: (spec.name, f"{spec.group_key}.{spec.flag[1]}")
+            for spec in explorers().values() if spec.flag}

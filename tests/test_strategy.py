@@ -1,0 +1,112 @@
+"""The plug-in contract (metapg_jax/strategy.py): one registry per kind, a strategy's own config group, and no
+strategy named outside its own file (the import graph: tests/test_imports.py)."""
+
+import ast
+import dataclasses
+import os
+
+import jax
+import numpy as np
+import pytest
+
+from metapg_jax import config as config_lib
+from metapg_jax import strategy
+from metapg_jax.train import make_train, seed_keys, vmap_seeds
+from tests.helpers import UniformExplorer, isolated_registry, tiny_config
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def test_a_registered_explorer_trains_without_touching_the_loop(monkeypatch):
+    isolated_registry(monkeypatch)
+    strategy.register_explorer("uniform", lambda config: UniformExplorer())
+    cfg = tiny_config("uniform")  # make_config takes a registered method; run.rollout_steps per cycle
+    assert cfg.run.method == "uniform" and cfg.steps_per_cycle == cfg.run.rollout_steps
+    trainer = make_train(cfg)
+    assert isinstance(trainer.explorer, UniformExplorer)
+    state = jax.jit(vmap_seeds(trainer.init))(seed_keys(0, 2))
+    state, metrics = jax.jit(vmap_seeds(trainer.train_chunk))(state)
+    assert np.all(np.asarray(state.explorer["steps"]) == cfg.run.eval_every)
+    assert np.all(np.asarray(state.env_steps) == cfg.run.eval_every)
+    assert np.all(np.asarray(metrics["cycle"]["finite"]))
+    assert np.all(np.isfinite(np.asarray(metrics["eval_return"])))
+
+
+def test_an_unknown_method_or_student_is_refused_naming_the_registered_ones():
+    cfg = tiny_config("ddpg")
+    with pytest.raises(ValueError, match=r"unknown method 'nope'; valid methods: ddpg, meta$"):
+        make_train(dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, method="nope")))
+    with pytest.raises(ValueError, match=r"unknown student 'nope'; valid students: ddpg, td3$"):
+        config_lib.make_config("pendulum", student="nope")
+
+
+@dataclasses.dataclass(frozen=True)
+class _Knobs:
+    width: float = 0.5
+    steps: int = 60
+
+
+def test_a_strategy_group_is_typed_overridable_stored_and_read_back(monkeypatch):
+    isolated_registry(monkeypatch)
+    strategy.register_explorer("knobbed", lambda config: UniformExplorer(), group=_Knobs,
+                               group_defaults=lambda config: _Knobs(steps=30 if config.env.name == "pendulum" else 60),
+                               steps_per_cycle=lambda config: config.knobbed.steps)
+    cfg = config_lib.make_config("pendulum", "knobbed", overrides={"knobbed.width": "0.25"})
+    assert cfg.knobbed == _Knobs(width=0.25, steps=30) and cfg.steps_per_cycle == 30
+    assert cfg.meta.explore_steps == 100  # the other strategies' groups are all there
+    stored = config_lib.to_dict(cfg)
+    assert stored["knobbed"] == {"width": 0.25, "steps": 30}
+    assert config_lib.from_dict(stored) == cfg
+    with pytest.raises(ValueError, match="knobbed.width: expected float"):
+        config_lib.make_config("pendulum", "knobbed", overrides={"knobbed.width": "wide"})
+    with pytest.raises(ValueError, match="fields of knobbed: width, steps"):
+        config_lib.make_config("pendulum", "knobbed", overrides={"knobbed.depth": "1"})
+
+
+def test_a_stored_group_nobody_declares_is_refused_and_moved_fields_are_read_in_their_new_place():
+    stored = config_lib.to_dict(config_lib.make_config("pendulum", "meta"))
+    with pytest.raises(ValueError, match="group 'knobbed' that no registered strategy declares"):
+        config_lib.from_dict({**stored, "knobbed": {"width": 1.0}})
+    old = {**stored, "run": {k: v for k, v in stored["run"].items() if k != "visit_samples"},
+           "meta": {**stored["meta"], "visit_samples": 16}}  # a config.json written before the field moved
+    assert config_lib.from_dict(old).run.visit_samples == 16
+    assert config_lib.make_config("pendulum", overrides={"meta.visit_samples": 16}).run.visit_samples == 16
+
+
+# The modules that run every strategy alike: the pure library's core, the host side, the env registry and the
+# generic commands. The strategies' own files, and the experiments about one of them (the teacher's screen and
+# ablation, Table 2's grid, the benchmarks), name them by design.
+GENERIC = ["metapg_jax/config.py", "metapg_jax/loop.py", "metapg_jax/train.py", "metapg_jax/sweep.py",
+           "metapg_jax/seeds.py", "metapg_jax/strategy.py", "metapg_jax/actor_critic.py", "metapg_jax/rollout.py",
+           "metapg_jax/evaluate.py", "metapg_jax/replay.py", "metapg_jax/visits.py", "envs/__init__.py",
+           "experiments/run.py", "experiments/sweep.py", "experiments/export.py",
+           *(f"metapg_jax/host/{f}" for f in sorted(os.listdir(os.path.join(ROOT, "metapg_jax", "host")))
+             if f.endswith(".py"))]
+
+
+def _names_in(path: str, names: set[str], groups: set[str]) -> list[str]:
+    """Where a file branches on a strategy's name, reads a strategy's group, or imports a strategy's module."""
+    found = []
+    for node in ast.walk(ast.parse(open(path).read())):
+        if isinstance(node, ast.Compare):
+            for side in [node.left, *node.comparators]:
+                items = side.elts if isinstance(side, (ast.Tuple, ast.List, ast.Set)) else [side]
+                found += [f"l.{node.lineno}: compares with {c.value!r}" for c in items
+                          if isinstance(c, ast.Constant) and c.value in names]
+        elif isinstance(node, ast.Attribute) and node.attr in groups and ast.unparse(node.value).endswith(
+                ("cfg", "config")):  # a config's group (not, say, a checkpoint's ``meta`` item)
+            found.append(f"l.{node.lineno}: .{node.attr}")
+        elif isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant) and node.slice.value in groups:
+            found.append(f"l.{node.lineno}: [{node.slice.value!r}]")
+        elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("metapg_jax.strategies"):
+            found.append(f"l.{node.lineno}: imports {node.module}")
+    return found
+
+
+def test_no_generic_module_names_a_registered_strategy():
+    names = {*strategy.explorers(), *strategy.students()}
+    groups = set(strategy.groups())
+    assert {"ddpg", "meta", "td3"} <= names and {"meta", "noise", "td3"} <= groups  # the check has teeth:
+    assert _names_in(os.path.join(ROOT, "metapg_jax", "strategies", "meta.py"), names, groups)  # it sees meta's own
+    found = {path: _names_in(os.path.join(ROOT, path), names, groups) for path in GENERIC}
+    assert {path: where for path, where in found.items() if where} == {}
