@@ -686,10 +686,11 @@ def main(argv: list[str] | None = None) -> int:
         print("error: --num-envs and --repeats must be positive", file=sys.stderr)
         return 2
     from experiments.reproduce import parse_list
-    from metapg_jax.config import METHODS, PRESETS
+    from metapg_jax import strategy
+    from metapg_jax.config import PRESETS
 
     try:
-        parse_list(args.methods, METHODS, "method")
+        parse_list(args.methods, tuple(sorted(strategy.explorers())), "method")
         parse_list(args.presets, PRESETS, "preset")
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)

@@ -276,9 +276,14 @@ def dirty_summary(cells: Iterable[RunResult]) -> str:
             + (f" ({len(undiffed)} without a stored diff: {names(undiffed)})" if undiffed else
                " (their diffs are stored beside them)") + ".")
     elsewhere = [c for c in reproduced if "recorded_commit" in checked[c.path]]
+    whole = [c for c in reproduced if c.env_steps_done and checked[c.path].get("env_steps") == c.env_steps_done]
     if reproduced or differs:
-        text += (f" Re-run from a clean checkout of the commit they started at, over their first evaluation "
-                 f"interval (`experiments.verify`, `verified.json`): {len(reproduced)} reproduced the stored "
+        checked_cells = len(reproduced) + len(differs)
+        span = ("over their first evaluation interval" if not whole else "over the whole run"
+                if len(whole) == checked_cells else
+                f"over their first evaluation interval, or the whole run for {len(whole)} ({names(whole)})")
+        text += (f" Re-run from a clean checkout of the commit they started at, {span} "
+                 f"(`experiments.verify`, `verified.json`): {len(reproduced)} reproduced the stored "
                  f"numbers" + (f" ({names(reproduced)})" if reproduced and (differs or later or unchecked) else "")
                  + (" (" + "; ".join(f"{c.task}/{c.method} at the later commit "
                                      f"`{checked[c.path]['commit'][:7]}`, which holds the changes it ran with"

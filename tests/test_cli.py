@@ -91,8 +91,8 @@ def test_help_documents_every_option():
 
 def test_tiny_meta_run_end_to_end(tmp_path):
     out = tmp_path / "meta"
-    cmd = [sys.executable, "-m", "experiments.run", *TINY_RUN, *TINY_BUFFER, "--steps=600", "--quiet",
-           "--out", str(out)]
+    cmd = [sys.executable, "-m", "experiments.run", *(a for a in TINY_RUN if a != "--no-plot"), *TINY_BUFFER,
+           "--steps=600", "--out", str(out)]
     res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=600,
                          env={**os.environ, "JAX_PLATFORMS": "cpu"})
     assert res.returncode == 0, res.stderr[-3000:]
