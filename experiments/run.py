@@ -46,7 +46,6 @@ import argparse
 import json
 import os
 import shutil
-import signal
 import sys
 import time
 
@@ -54,6 +53,7 @@ import envs
 from metapg_jax import config as config_lib
 from metapg_jax import strategy
 from metapg_jax.host import compile_cache
+from metapg_jax.host.runner import Signals, Stopped, restart_command, run_chunks, stop_message
 
 # The explorers' command-line shortcuts for one field of their group (``--teacher``, ``--noise``;
 # metapg_jax.strategy.flags): {option: (explorer, dotted field)}.
@@ -418,96 +418,6 @@ def _maybe_initialize_distributed() -> None:
     jax.distributed.initialize(**kwargs)
 
 
-class Stopped(Exception):
-    """Raised in the host loop by SIGTERM or a second Ctrl-C: stop at once (``Signals``)."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-        self.status = 128 + signum  # 130 (SIGINT), 143 (SIGTERM): the shells' convention
-
-
-class Signals:
-    """How a host loop stops. The first Ctrl-C sets ``requested``: the loop finishes the chunk in
-    flight, checkpoints and exits 130. A second Ctrl-C, or SIGTERM, raises ``Stopped`` at once (exit
-    130 / 143): a scheduler that sends SIGTERM may kill the process soon after, and the chunk in flight
-    cannot be saved (the state it started from was donated to it). ``wait`` blocks on a chunk's
-    results in short sleeps, so that a signal is handled while a chunk runs, not only after it.
-
-    Python runs a handler wherever the main thread is, also inside a garbage-collection callback or a
-    ``__del__``, where an exception is printed and dropped ("Exception ignored in ..."): so the handler
-    also keeps the stop in ``stopped``, and ``wait`` and ``check`` raise it again."""
-
-    def __init__(self):
-        self.requested = False
-        self.stopped: Stopped | None = None
-        self.in_flight = None  # the 1-based chunk the loop is running, for the stop line
-        self._old = {}
-
-    def _handler(self, signum, frame):
-        if signum == signal.SIGINT and not self.requested:
-            self.requested = True
-            print("\ninterrupt: finishing the current chunk, then checkpointing (Ctrl-C again to stop at once)",
-                  file=sys.stderr, flush=True)
-            return
-        self.stopped = Stopped(signum)
-        raise self.stopped
-
-    def __enter__(self):
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            self._old[signum] = signal.signal(signum, self._handler)
-        return self
-
-    def __exit__(self, *exc):
-        for signum, old in self._old.items():
-            signal.signal(signum, old)
-        return False
-
-    def check(self) -> None:
-        """Raises the ``Stopped`` a handler raised where it was dropped, if any."""
-        if self.stopped is not None:
-            raise self.stopped
-
-    def wait(self, tree):
-        """Returns ``tree`` once every array in it is computed (signal handlers run meanwhile)."""
-        import jax
-
-        pause = 1e-3
-        for leaf in jax.tree.leaves(tree):
-            while hasattr(leaf, "is_ready") and not leaf.is_ready():
-                time.sleep(pause)
-                pause = min(2 * pause, 0.05)
-                self.check()
-        self.check()
-        return tree
-
-
-def stop_message(stop: Stopped, what: str, in_flight: int | None, num_chunks: int, checkpointed: int | None,
-                 every: int, resume_command: str, restart_command: str) -> str:
-    """The one line a host loop prints when ``Stopped``: what is lost and how to go on.
-
-    Args:
-      what: 'the run' or, for a sweep, 'group 2'.
-      in_flight: the 1-based chunk that was running (None: stopped before the first chunk started).
-      checkpointed: the chunks the last checkpoint holds (None: no checkpoint).
-      resume_command / restart_command: how to continue from a checkpoint / start again without one.
-    """
-    who = "Ctrl-C" if stop.signum == signal.SIGINT else stop.args[0]
-    lost = (f"chunk {in_flight} of {num_chunks} was running and is lost" if in_flight is not None
-            else "no chunk had started")
-    if checkpointed:
-        return (f"stopped by {who}: {lost}; {what}'s last checkpoint holds {checkpointed} chunks "
-                f"({checkpointed * every:,} env steps per seed); continue with: {resume_command}")
-    return (f"stopped by {who}: {lost}; nothing of {what} was checkpointed, so it cannot be resumed; start "
-            f"again with: {restart_command}")
-
-
-def restart_command(module: str, argv: list[str] | None) -> str:
-    """The command line that started this process, with ``--overwrite`` (to start again in its folder)."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    return " ".join(["python -m", module, *args, *([] if "--overwrite" in args else ["--overwrite"])])
-
-
 def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
         plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0,
         extend_from: int | None = None, tensorboard: bool = False, restart: str | None = None,
@@ -616,49 +526,40 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
                              start * cfg.run.eval_every)
     progress = terminal.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet or not main_process,
                                   initial=start * cfg.run.eval_every)  # rates: this call's steps only
-    last_ckpt = time.perf_counter()
     t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
-    status, chunks_run = 0, 0
+
+    def record(chunk: int, metrics) -> int | None:
+        nonlocal t_chunk
+        bad = _first_nonfinite(metrics, chunk, cfg)
+        if bad is not None:
+            seed_i, step = bad
+            done = checkpointer.steps()
+            print(f"\nerror: non-finite parameters in seed {seed_i} by env step {step:,} (chunk {chunk}); "
+                  f"run stopped. Last good checkpoint: "
+                  f"{f'after chunk {done[-1]}' if done else 'none'} in {checkpointer.directory}. "
+                  f"Try --debug-nans or a smaller learning rate.", file=sys.stderr, flush=True)
+            return 3
+        if main_process:
+            now = time.perf_counter()
+            rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
+            metrics_writer.write(rows)
+            t_chunk = now
+            cycles = []
+            if cycle_writer is not None:
+                cycles = metric_rows.cycle_rows(metrics, cfg.explorer_spec.cycle_metrics, chunk * cfg.cycles_per_chunk)
+                cycle_writer.write(cycles)
+            if tb_writer is not None:
+                tb_writer.write(rows, cycles)
+        return None
+
+    def due(chunks_run: int, since_save: float) -> bool:
+        return chunks_run % checkpoint_every == 0 if checkpoint_every else since_save >= 60 * checkpoint_minutes
+
     try:
-        for chunk in range(start, cfg.num_chunks):
-            signals.in_flight = chunk + 1
-            state, metrics = chunk_fn(state)
-            metrics = _to_host(signals.wait(metrics))
-            chunks_run += 1
-            bad = _first_nonfinite(metrics, chunk, cfg)
-            if bad is not None:
-                seed_i, step = bad
-                done = checkpointer.steps()
-                print(f"\nerror: non-finite parameters in seed {seed_i} by env step {step:,} (chunk {chunk}); "
-                      f"run stopped. Last good checkpoint: "
-                      f"{f'after chunk {done[-1]}' if done else 'none'} in {checkpointer.directory}. "
-                      f"Try --debug-nans or a smaller learning rate.", file=sys.stderr, flush=True)
-                status = 3
-                break
-            if main_process:
-                now = time.perf_counter()
-                rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
-                metrics_writer.write(rows)
-                t_chunk = now
-                cycles = []
-                if cycle_writer is not None:
-                    cycles = metric_rows.cycle_rows(metrics, cfg.explorer_spec.cycle_metrics,
-                                                  chunk * cfg.cycles_per_chunk)
-                    cycle_writer.write(cycles)
-                if tb_writer is not None:
-                    tb_writer.write(rows, cycles)
-            progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
-            last = chunk + 1 == cfg.num_chunks
-            due = ((chunk + 1 - start) % checkpoint_every == 0) if checkpoint_every else \
-                (time.perf_counter() - last_ckpt) >= 60 * checkpoint_minutes
-            if last or due or signals.requested:
-                checkpointer.save(chunk + 1, state, ckpt_meta())
-                last_ckpt = time.perf_counter()
-            if signals.requested and not last:
-                print(f"\ninterrupted: checkpointed after chunk {chunk + 1} of {cfg.num_chunks}; "
-                      f"continue with: python -m experiments.run --resume {out}", file=sys.stderr, flush=True)
-                status = 130
-                break
+        state, status, chunks_run = run_chunks(
+            chunk_fn, state, start=start, num_chunks=cfg.num_chunks, signals=signals, fetch=_to_host, record=record,
+            progress=progress, save=lambda done, s: checkpointer.save(done, s, ckpt_meta()), due=due,
+            interrupted=f"; continue with: python -m experiments.run --resume {out}")
     finally:
         progress.close()
         if metrics_writer is not None:

@@ -39,7 +39,7 @@ import time
 
 import envs
 from experiments import run as run_lib
-from metapg_jax.host import compile_cache
+from metapg_jax.host import compile_cache, runner
 
 SWEEP_ARGS = ("env", "method", *run_lib.FLAGS, "student", "preset", "seeds", "seed", "steps", "source",
               "physics", "overrides", "plugins")
@@ -217,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
           f"({configs[0].run.total_steps:,} env steps each) in {len(groups)} program(s); output {out}", flush=True)
     for g, group in enumerate(groups):
         status = run_group(out, g, group, settings, configs, env, a, args,
-                           restart=run_lib.restart_command("experiments.sweep", argv))
+                           restart=runner.restart_command("experiments.sweep", argv))
         if status:
             return status
     write_summary(out, settings, configs, plot=not args.no_plot)
@@ -264,39 +264,40 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
     writer = runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl"))
     progress = terminal.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
                                   disable=args.quiet, initial=start * cfg.run.eval_every)
-    last_ckpt = t_train = t_chunk = time.perf_counter()
-    chunk = start
+    t_train = t_chunk = time.perf_counter()
+
+    def record(chunk: int, metrics) -> None:
+        nonlocal t_chunk
+        now = time.perf_counter()
+        rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
+        t_chunk = now
+        finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
+        for i, row in enumerate(rows):
+            row["setting"], row["seed"] = members[i // num_seeds], i % num_seeds
+            row["finite"] = bool(finite[i])
+        writer.write(rows)
+
+    signals = runner.Signals()
     try:
-        with run_lib.Signals() as signals:
-            for chunk in range(start, cfg.num_chunks):
-                state, metrics = chunk_fn(state, values)
-                metrics = jax.device_get(signals.wait(metrics))
-                now = time.perf_counter()
-                rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
-                t_chunk = now
-                finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
-                for i, row in enumerate(rows):
-                    row["setting"], row["seed"] = members[i // num_seeds], i % num_seeds
-                    row["finite"] = bool(finite[i])
-                writer.write(rows)
-                progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
-                last = chunk + 1 == cfg.num_chunks
-                if last or signals.requested or time.perf_counter() - last_ckpt >= 60 * args.checkpoint_minutes:
-                    checkpointer.save(chunk + 1, state, {"group": g, "settings": members})
-                    last_ckpt = time.perf_counter()
-                if signals.requested and not last:
-                    print(f"\ninterrupted: checkpointed after chunk {chunk + 1} of {cfg.num_chunks} of group {g + 1}; "
-                          f"continue with: python -m experiments.sweep --resume {out}", file=sys.stderr, flush=True)
-                    return 130
-    except run_lib.Stopped as stop:
+        with signals:
+            _, status, _ = runner.run_chunks(
+                lambda s: chunk_fn(s, values), state, start=start, num_chunks=cfg.num_chunks, signals=signals,
+                fetch=jax.device_get, record=record, progress=progress,
+                save=lambda done, s: checkpointer.save(done, s, {"group": g, "settings": members}),
+                due=lambda _, since_save: since_save >= 60 * args.checkpoint_minutes,
+                interrupted=f" of group {g + 1}; continue with: python -m experiments.sweep --resume {out}")
+            if status:
+                return status
+    except runner.Stopped as stop:
         progress.close()
         done = checkpointer.steps()
         resume = f"python -m experiments.sweep --resume {out}"
+        chunk = signals.in_flight or start + 1  # the 1-based chunk that was running
         if done or g == 0:
-            line = run_lib.stop_message(stop, f"group {g + 1}", chunk + 1, cfg.num_chunks, done[-1] if done else None,
+            line = runner.stop_message(stop, f"group {g + 1}", chunk, cfg.num_chunks, done[-1] if done else None,
                                         cfg.run.eval_every, resume, restart)
         else:  # the earlier groups are finished: --resume skips them and starts this one afresh
-            line = (f"stopped by {stop.args[0]}: chunk {chunk + 1} of {cfg.num_chunks} of group {g + 1} was running "
+            line = (f"stopped by {stop.args[0]}: chunk {chunk} of {cfg.num_chunks} of group {g + 1} was running "
                     f"and is lost with the group's earlier chunks (no checkpoint yet); groups 1-{g} are done; "
                     f"continue with: {resume}")
         print("\n" + line, file=sys.stderr, flush=True)

@@ -230,38 +230,6 @@ def test_sigterm_before_the_first_checkpoint_says_nothing_was_saved(tmp_path):
     assert not any((out / "checkpoints").iterdir()) if (out / "checkpoints").exists() else True
 
 
-def test_the_stop_line_after_a_checkpoint_names_the_resume():
-    import signal
-
-    line = run.stop_message(run.Stopped(signal.SIGINT), "the run", 3, 10, 2, 9000, "RESUME", "RESTART")
-    assert line == ("stopped by Ctrl-C: chunk 3 of 10 was running and is lost; the run's last checkpoint holds 2 "
-                    "chunks (18,000 env steps per seed); continue with: RESUME")
-    assert run.Stopped(signal.SIGINT).status == 130 and run.Stopped(signal.SIGTERM).status == 143
-
-
-
-@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # the drop this test makes
-def test_a_stop_that_python_dropped_is_raised_by_the_next_wait():
-    """A SIGTERM handled inside a garbage-collection callback: Python prints and drops the handler's
-    exception there (seen in this suite: the run then trained on and exited 0); the loop's next ``wait``
-    raises it."""
-    import gc
-    import signal
-
-    import numpy as np
-
-    signals = run.Signals()
-
-    class Collected:
-        def __del__(self):
-            signals._handler(signal.SIGTERM, None)  # raises Stopped, which Python drops here
-
-    Collected()
-    gc.collect()
-    assert isinstance(signals.stopped, run.Stopped)
-    with pytest.raises(run.Stopped, match="SIGTERM"):
-        signals.wait({"x": np.zeros(2)})
-
 def test_a_resume_keeps_the_stored_engine(tmp_path):
     """--physics=auto (the default) is stored resolved; a resume keeps the stored engine, also for a run
     stored before --physics existed (its config's engine); an explicit --physics wins for a new run."""

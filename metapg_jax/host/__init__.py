@@ -10,5 +10,6 @@ imports this package (``tests/test_imports.py``):
 * ``provenance``: commit, uncommitted changes, machine;
 * ``compile_cache``: the persistent XLA compilation cache;
 * ``checkpoint``: orbax checkpoints of the seed-batched training state;
-* ``policy``: exported policies (``policy.npz``), written and loaded with NumPy alone.
+* ``policy``: exported policies (``policy.npz``), written and loaded with NumPy alone;
+* ``runner``: the chunk loop the commands share, with its signals and stop line.
 """

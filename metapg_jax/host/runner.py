@@ -1,0 +1,145 @@
+"""The host loop every command shares: a compiled chunk program run chunk by chunk, each chunk's metrics handed
+to the caller as they come, the progress bar advanced, checkpoints on a cadence, at the end and on a first Ctrl-C,
+and the one line that says what a stop lost and how to go on.
+
+``experiments.run`` (one run) and ``experiments.sweep`` (one program group) drive it; what differs between them
+(the rows they write, the NaN guard, what a checkpoint holds) is theirs, passed in as functions.
+"""
+
+from __future__ import annotations
+
+import signal
+import sys
+import time
+from typing import Any, Callable
+
+
+class Stopped(Exception):
+    """Raised in the host loop by SIGTERM or a second Ctrl-C: stop at once (``Signals``)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.status = 128 + signum  # 130 (SIGINT), 143 (SIGTERM): the shells' convention
+
+
+class Signals:
+    """How a host loop stops. The first Ctrl-C sets ``requested``: the loop finishes the chunk in
+    flight, checkpoints and exits 130. A second Ctrl-C, or SIGTERM, raises ``Stopped`` at once (exit
+    130 / 143): a scheduler that sends SIGTERM may kill the process soon after, and the chunk in flight
+    cannot be saved (the state it started from was donated to it). ``wait`` blocks on a chunk's
+    results in short sleeps, so that a signal is handled while a chunk runs, not only after it.
+
+    Python runs a handler wherever the main thread is, also inside a garbage-collection callback or a
+    ``__del__``, where an exception is printed and dropped ("Exception ignored in ..."): so the handler
+    also keeps the stop in ``stopped``, and ``wait`` and ``check`` raise it again."""
+
+    def __init__(self):
+        self.requested = False
+        self.stopped: Stopped | None = None
+        self.in_flight = None  # the 1-based chunk the loop is running, for the stop line
+        self._old = {}
+
+    def _handler(self, signum, frame):
+        if signum == signal.SIGINT and not self.requested:
+            self.requested = True
+            print("\ninterrupt: finishing the current chunk, then checkpointing (Ctrl-C again to stop at once)",
+                  file=sys.stderr, flush=True)
+            return
+        self.stopped = Stopped(signum)
+        raise self.stopped
+
+    def __enter__(self):
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            self._old[signum] = signal.signal(signum, self._handler)
+        return self
+
+    def __exit__(self, *exc):
+        for signum, old in self._old.items():
+            signal.signal(signum, old)
+        return False
+
+    def check(self) -> None:
+        """Raises the ``Stopped`` a handler raised where it was dropped, if any."""
+        if self.stopped is not None:
+            raise self.stopped
+
+    def wait(self, tree):
+        """Returns ``tree`` once every array in it is computed (signal handlers run meanwhile)."""
+        import jax
+
+        pause = 1e-3
+        for leaf in jax.tree.leaves(tree):
+            while hasattr(leaf, "is_ready") and not leaf.is_ready():
+                time.sleep(pause)
+                pause = min(2 * pause, 0.05)
+                self.check()
+        self.check()
+        return tree
+
+
+def stop_message(stop: Stopped, what: str, in_flight: int | None, num_chunks: int, checkpointed: int | None,
+                 every: int, resume_command: str, restart_command: str) -> str:
+    """The one line a host loop prints when ``Stopped``: what is lost and how to go on.
+
+    Args:
+      what: 'the run' or, for a sweep, 'group 2'.
+      in_flight: the 1-based chunk that was running (None: stopped before the first chunk started).
+      checkpointed: the chunks the last checkpoint holds (None: no checkpoint).
+      resume_command / restart_command: how to continue from a checkpoint / start again without one.
+    """
+    who = "Ctrl-C" if stop.signum == signal.SIGINT else stop.args[0]
+    lost = (f"chunk {in_flight} of {num_chunks} was running and is lost" if in_flight is not None
+            else "no chunk had started")
+    if checkpointed:
+        return (f"stopped by {who}: {lost}; {what}'s last checkpoint holds {checkpointed} chunks "
+                f"({checkpointed * every:,} env steps per seed); continue with: {resume_command}")
+    return (f"stopped by {who}: {lost}; nothing of {what} was checkpointed, so it cannot be resumed; start "
+            f"again with: {restart_command}")
+
+
+def restart_command(module: str, argv: list[str] | None) -> str:
+    """The command line that started this process, with ``--overwrite`` (to start again in its folder)."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    return " ".join(["python -m", module, *args, *([] if "--overwrite" in args else ["--overwrite"])])
+
+
+def run_chunks(step: Callable[[Any], tuple[Any, Any]], state: Any, *, start: int, num_chunks: int, signals: Signals,
+               fetch: Callable[[Any], Any], record: Callable[[int, Any], int | None], progress: Any,
+               save: Callable[[int, Any], None], due: Callable[[int, float], bool], interrupted: str) -> tuple[Any, int, int]:
+    """Runs chunks ``start .. num_chunks - 1`` of a compiled program.
+
+    Args:
+      step: ``state -> (state, metrics)``, one chunk (the compiled program; it may donate ``state``).
+      fetch: the chunk's metrics to NumPy on this host (after ``signals.wait``).
+      record: ``(chunk, metrics)``: writes what the caller keeps of a chunk; a non-zero return stops the loop
+        with that status before the chunk is checkpointed (the NaN guard's 3).
+      progress: a ``metapg_jax.host.terminal.Progress``, advanced after each chunk.
+      save: ``(chunks_done, state)``: a checkpoint; called after the last chunk, on a first Ctrl-C and when
+        ``due(chunks run in this call, seconds since the last checkpoint)`` says so.
+      interrupted: what follows "checkpointed after chunk N of M" in the line a first Ctrl-C prints (where,
+        and the command that continues).
+
+    Returns: (the state, the status: 0, 130 after a first Ctrl-C, or ``record``'s, the chunks run). A second
+    Ctrl-C or SIGTERM raises ``Stopped`` (``signals.in_flight`` names the chunk that was running)."""
+    status, chunks_run = 0, 0
+    last_save = time.perf_counter()
+    for chunk in range(start, num_chunks):
+        signals.in_flight = chunk + 1
+        state, metrics = step(state)
+        metrics = fetch(signals.wait(metrics))
+        chunks_run += 1
+        status = record(chunk, metrics) or 0
+        if status:
+            break
+        progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
+        last = chunk + 1 == num_chunks
+        if last or signals.requested or due(chunk + 1 - start, time.perf_counter() - last_save):
+            save(chunk + 1, state)
+            last_save = time.perf_counter()
+        if signals.requested and not last:
+            print(f"\ninterrupted: checkpointed after chunk {chunk + 1} of {num_chunks}{interrupted}", file=sys.stderr,
+                  flush=True)
+            status = 130
+            break
+    return state, status, chunks_run

@@ -1,0 +1,77 @@
+"""The shared host loop (metapg_jax/host/runner.py): the chunk loop's order of things and its checkpoint cadence,
+signals and the stop line. Whole runs stopped and resumed: tests/test_longrun.py, test_physics.py, test_sweep.py."""
+
+import numpy as np
+import pytest
+
+from metapg_jax.host import runner
+
+
+class _Progress:
+    def __init__(self):
+        self.steps = []
+
+    def update(self, env_steps, eval_returns):
+        self.steps.append(env_steps)
+
+
+def _chunk(state):
+    """A fake compiled chunk: the state counts chunks; the metrics are what a real chunk returns to the host."""
+    return state + 1, {"env_steps": np.full(2, 10 * (state + 1)), "eval_return": np.zeros((2, 3))}
+
+
+def test_the_chunk_loop_records_every_chunk_saves_on_its_cadence_and_at_the_end():
+    recorded, saved, progress = [], [], _Progress()
+    state, status, chunks_run = runner.run_chunks(
+        _chunk, 2, start=2, num_chunks=7, signals=runner.Signals(), fetch=lambda m: m,
+        record=lambda chunk, m: recorded.append((chunk, int(m["env_steps"][0]))), progress=progress,
+        save=lambda done, s: saved.append((done, s)), due=lambda run_here, since: run_here % 2 == 0, interrupted="")
+    assert (state, status, chunks_run) == (7, 0, 5)
+    assert recorded == [(2, 30), (3, 40), (4, 50), (5, 60), (6, 70)] and progress.steps == [30, 40, 50, 60, 70]
+    assert saved == [(4, 4), (6, 6), (7, 7)]  # every 2 chunks run in this call, and the last
+
+
+def test_a_status_from_record_stops_before_the_chunk_is_saved_and_a_first_ctrl_c_after_it(capsys):
+    saved = []
+    kw = dict(start=0, num_chunks=5, fetch=lambda m: m, progress=_Progress(), due=lambda *_: False,
+              save=lambda done, s: saved.append(done), interrupted="; continue with: RESUME")
+    _, status, chunks_run = runner.run_chunks(_chunk, 0, signals=runner.Signals(),
+                                              record=lambda chunk, m: 3 if chunk == 1 else None, **kw)
+    assert (status, chunks_run, saved) == (3, 2, [])  # the NaN guard's stop: the bad chunk is not checkpointed
+    signals = runner.Signals()
+    signals.requested = True  # a first Ctrl-C during the first chunk
+    state, status, chunks_run = runner.run_chunks(_chunk, 0, signals=signals, record=lambda *_: None, **kw)
+    assert (state, status, chunks_run, saved) == (1, 130, 1, [1])
+    assert "interrupted: checkpointed after chunk 1 of 5; continue with: RESUME" in capsys.readouterr().err
+
+
+def test_the_stop_line_after_a_checkpoint_names_the_resume():
+    import signal
+
+    line = runner.stop_message(runner.Stopped(signal.SIGINT), "the run", 3, 10, 2, 9000, "RESUME", "RESTART")
+    assert line == ("stopped by Ctrl-C: chunk 3 of 10 was running and is lost; the run's last checkpoint holds 2 "
+                    "chunks (18,000 env steps per seed); continue with: RESUME")
+    assert runner.Stopped(signal.SIGINT).status == 130 and runner.Stopped(signal.SIGTERM).status == 143
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnraisableExceptionWarning")  # the drop this test makes
+def test_a_stop_that_python_dropped_is_raised_by_the_next_wait():
+    """A SIGTERM handled inside a garbage-collection callback: Python prints and drops the handler's
+    exception there (seen in this suite: the run then trained on and exited 0); the loop's next ``wait``
+    raises it."""
+    import gc
+    import signal
+
+    import numpy as np
+
+    signals = runner.Signals()
+
+    class Collected:
+        def __del__(self):
+            signals._handler(signal.SIGTERM, None)  # raises Stopped, which Python drops here
+
+    Collected()
+    gc.collect()
+    assert isinstance(signals.stopped, runner.Stopped)
+    with pytest.raises(runner.Stopped, match="SIGTERM"):
+        signals.wait({"x": np.zeros(2)})
