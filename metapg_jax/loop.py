@@ -39,6 +39,7 @@ from metapg_jax import replay
 from metapg_jax import visits as visits_lib
 from metapg_jax.config import Config
 from metapg_jax.evaluate import evaluate
+from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.seeds import per_seed_cond, vmap_seeds
 from metapg_jax.types import Transition
 
@@ -112,13 +113,18 @@ class Trainer:
         return state.replace(explorer=self.explorer.init(self, student, k_explorer))
 
     # ------------------------------------------------------------------ building blocks of a cycle
-    def store(self, state: TrainState, transitions: Transition) -> TrainState:
-        """Adds a flat batch of transitions to the buffer and the normaliser; counts them."""
+    def store(self, state: TrainState, transitions: Transition, source: str = "explore") -> TrainState:
+        """Adds a flat batch of transitions to the buffer and the normaliser, counts them, and keeps their states
+        in the visitation sample as the exploring policy's (``source='explore'``) or the student's
+        (``'student'``: Algorithm 1's D1 and D2)."""
         n = transitions.reward.shape[0]
+        if source not in ("explore", "student"):
+            raise ValueError(f"store: source must be 'explore' or 'student', got {source!r}")
         return state.replace(
             buffer=replay.add(state.buffer, transitions),
             normalizer=norm_lib.update(state.normalizer, transitions.obs),
             env_steps=state.env_steps + n,
+            visits=visits_lib.record(state.visits, **{f"{source}_obs": transitions.obs}),
         )
 
     def can_update(self, state: TrainState) -> jax.Array:
@@ -167,9 +173,47 @@ class Trainer:
         student, explorer, updates, metrics = per_seed_cond(self.can_update(state), run, skip, None)
         return state.replace(student=student, explorer=explorer, updates=updates), metrics
 
+    def acting_cycle(self, state: TrainState) -> tuple[TrainState, dict]:
+        """The cycle of an explorer that only chooses actions (``metapg_jax.strategy.ActingExplorer``):
+        ``steps_per_cycle`` env steps of its ``act`` (its ``episode_start`` first where an episode starts;
+        uniformly random actions during the warm-up), stored, then ``run.train_steps`` student updates (its
+        ``adapt`` before every ``adapt_every`` of them), and its ``metrics``."""
+        explorer, run = self.explorer, self.config.run
+        key, k_roll, k_train = jax.random.split(state.key, 3)
+        warm = state.env_steps < run.warmup_steps
+        student, normalizer = state.student, state.normalizer
+        start = getattr(explorer, "episode_start", None)
+
+        def policy(carry, obs, first, k):
+            k_reset, k_act, k_rand = jax.random.split(k, 3)
+            if start is not None:
+                # Episode starts are rare: the hook runs only on steps where some seed starts one
+                # (per_seed_cond), and its result is kept only for those seeds.
+                carry = per_seed_cond(first, lambda c: start(self, c, student, k_reset), lambda c: c, carry)
+            action, carry = explorer.act(self, carry, student, normalizer, obs, k_act)
+            return jnp.where(warm, self.random_action(k_rand), action), carry, None
+
+        env_state, carry, transitions, stats, _ = rollout(self.env, policy, state.env_state, state.explorer, k_roll,
+                                                          self.config.steps_per_cycle)
+        state = self.store(state.replace(env_state=env_state, explorer=carry, key=key), transitions)
+        every = getattr(explorer, "adapt_every", 0)
+        if every:
+            stored = state.normalizer
+            between = lambda e, s, batch, k: explorer.adapt(self, e, s, stored, batch, k)
+            state, train_metrics = self.student_updates(state, k_train, run.train_steps, between, every)
+        else:
+            state, train_metrics = self.student_updates(state, k_train, run.train_steps)
+        ret_mean, n_eps = completed_episode_mean(stats)
+        own = explorer.metrics(state.explorer) if hasattr(explorer, "metrics") else {}
+        return state, {**train_metrics, "train_return": ret_mean, "train_episodes": n_eps, **own}
+
     def cycle(self, state: TrainState) -> tuple[TrainState, dict]:
-        """One cycle of the explorer (collect, and whatever the explorer does with the data) and the NaN guard."""
-        state, metrics = self.explorer.cycle(self, state)
+        """One cycle of the explorer (its own ``cycle``, or ``acting_cycle`` for one that only acts) and the NaN
+        guard."""
+        if hasattr(self.explorer, "cycle"):
+            state, metrics = self.explorer.cycle(self, state)
+        else:
+            state, metrics = self.acting_cycle(state)
         metrics["finite"] = all_finite(state)
         return state.replace(cycles=state.cycles + 1), metrics
 

@@ -11,7 +11,8 @@ for the cycle metrics, labels and flags.
 
 A strategy's contract in brief:
 
-* the object (``make``): a :class:`Student` or an :class:`Explorer` below, pure and jittable;
+* the object (``make``): a :class:`Student`, or an :class:`ActingExplorer` (it chooses actions; the loop
+  runs the cycle) or an :class:`Explorer` (a cycle of its own) below; pure and jittable;
 * its config group (``group``: a frozen dataclass, or None): ``config.<name>`` of every config, stored in
   config.json, set with ``--set <name>.<field>=V``, type-checked by ``config.override``;
 * ``group_defaults(config) -> group``: the group's defaults for the config's task and preset (every config
@@ -63,16 +64,45 @@ class Student(Protocol):
         Returns: (the new state, a dict of scalar metrics: chunk means in ``metrics.jsonl``)."""
 
 
-class Explorer(Protocol):
-    """Who collects the student's data: one *cycle* of collecting, storing and training, as a scan body."""
+class ActingExplorer(Protocol):
+    """An explorer that only chooses actions; the loop runs its cycle (``metapg_jax.loop.Trainer.acting_cycle``):
+    ``steps_per_cycle`` env steps of ``act``, stored, then ``run.train_steps`` student updates. The DDPG
+    baselines' noise is one (``metapg_jax.strategies.noise``). ``episode_start``, ``adapt`` (with
+    ``adapt_every``) and ``metrics`` are optional."""
 
     def init(self, trainer: Any, student_state: Any, key: Any) -> Any:
         """Args: the ``metapg_jax.loop.Trainer``, the freshly initialised student state, a PRNG key.
-        Returns: the explorer's part of a seed's ``TrainState`` (``state.explorer``; a pytree)."""
+        Returns: the explorer's part of a seed's ``TrainState`` (``state.explorer``, its *carry*; a pytree)."""
+
+    def act(self, trainer: Any, carry: Any, student_state: Any, normalizer: Any, obs: Any, key: Any) -> tuple[Any, Any]:
+        """One env step's action. Args: the trainer, the carry, the student's state and the normaliser as the
+        cycle began, one raw observation, a PRNG key. Returns: (an action in [-1, 1], the new carry)."""
+
+    def episode_start(self, trainer: Any, carry: Any, student_state: Any, key: Any) -> Any:
+        """Optional. Returns: the carry for an episode that starts at this step (OU's reset, a new parameter
+        perturbation); run only on steps where some seed starts an episode."""
+
+    adapt_every: int  # optional: ``adapt`` runs before every ``adapt_every`` student updates (0: never)
+
+    def adapt(self, trainer: Any, carry: Any, student_state: Any, normalizer: Any, batch: Any, key: Any) -> Any:
+        """Optional. Args: as ``act``, with a replay minibatch (``Transition``) instead of an observation and the
+        normaliser after this cycle's data. Returns: the new carry (adaptive parameter noise's stddev)."""
+
+    def metrics(self, carry: Any) -> dict:
+        """Optional. Returns: scalar metrics of the carry, added to the cycle's."""
+
+
+class Explorer(Protocol):
+    """An explorer with a cycle of its own, as a scan body: the teacher of Algorithm 1 (whose data also trains
+    a look-ahead copy of the student and the teacher itself)."""
+
+    def init(self, trainer: Any, student_state: Any, key: Any) -> Any:
+        """As ``ActingExplorer.init``."""
 
     def cycle(self, trainer: Any, state: Any) -> tuple[Any, dict]:
-        """One cycle: collect in ``trainer.env`` (``metapg_jax.rollout.rollout``), ``trainer.store`` the data
-        (exactly ``steps_per_cycle`` env steps), train the student (``trainer.student_updates``).
+        """One cycle, built from the loop's stages: collect in ``trainer.env`` (``metapg_jax.rollout.rollout``),
+        ``trainer.store`` the data (exactly ``steps_per_cycle`` env steps; ``source='student'`` for the
+        student's own rollouts), train the student (``trainer.student_updates``).
 
         Args: the trainer, a seed's ``TrainState``. Returns: (the new state, a dict of scalar metrics)."""
 
@@ -107,7 +137,7 @@ class ExplorerSpec:
     """An explorer by name (``--method``). ``make(config) -> Explorer``."""
 
     name: str
-    make: Callable[[Any], Explorer]
+    make: Callable[[Any], ActingExplorer | Explorer]
     group: type | None = None
     group_name: str | None = None                               # default: ``name``
     group_defaults: Callable[[Any], Any] | None = None

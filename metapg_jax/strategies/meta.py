@@ -52,7 +52,6 @@ import jax
 import jax.numpy as jnp
 
 from metapg_jax import strategy
-from metapg_jax import visits as visits_lib
 from metapg_jax.loop import TrainState, Trainer, flatten_time, train_updates
 from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.teacher import Teacher, TeacherState
@@ -186,9 +185,9 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     params_d0 = tstate.params  # the teacher that produced D0, for the diagnostics below
     tstate = teacher.update(tstate, student.actor, d0_obs_n, d0_raw, signal)
 
-    # 6. Buffer <- D0, D1.
+    # 6. Buffer <- D0, D1 (the teacher's states and the student's, in the visitation sample).
     state = trainer.store(state.replace(env_state=env_state, key=key), d0)
-    state = trainer.store(state, d1)
+    state = trainer.store(state, d1, source="student")
 
     # 7. Student update on the buffer, from pi (paper) or from pi'.
     if m.student_from == "lookahead":
@@ -199,14 +198,10 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     r_hat_pi = tstate.r_hat
     if m.baseline == "fresh":
         d2, r_hat_next = student_rollout(trainer, state.student.actor, state.normalizer, k_d2)
-        state = trainer.store(state, d2)
-        student_states = jnp.concatenate([d1.obs, d2.obs])
+        state = trainer.store(state, d2, source="student")
     else:
         r_hat_next = r_hat_lookahead
-        student_states = d1.obs
-    tstate = tstate.replace(r_hat=r_hat_next)
-    state = state.replace(explorer=tstate,
-                          visits=visits_lib.record(state.visits, explore_obs=d0.obs, student_obs=student_states))
+    state = state.replace(explorer=tstate.replace(r_hat=r_hat_next))
 
     # Teacher diagnostics on D0 (with the teacher before its update, which produced D0).
     _, log_std = teacher.distribution(params_d0, student.actor, d0_obs_n)

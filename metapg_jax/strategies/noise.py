@@ -14,7 +14,7 @@ All three as in the 2018 OpenAI-baselines DDPG (``baselines/ddpg/noise.py``,
   multiplied by it otherwise.
 
 ``NoiseExplorer`` is the DDPG baseline's explorer, registered as ``ddpg`` (``--method=ddpg``; its group is
-``noise``, its shortcut ``--noise``): its cycle is
+``noise``, its shortcut ``--noise``). It only chooses actions; the loop's cycle (``Trainer.acting_cycle``) is
 ``rollout_steps`` steps of the noisy actor, stored, then ``train_steps`` student updates (with the
 stddev adaptation between blocks of ``adapt_every`` of them for adaptive parameter noise).
 """
@@ -30,11 +30,8 @@ import jax.numpy as jnp
 from flax import struct
 
 from metapg_jax import strategy
-from metapg_jax import visits as visits_lib
-from metapg_jax.loop import TrainState, Trainer
+from metapg_jax.loop import Trainer
 from metapg_jax.networks import is_layer_norm_path
-from metapg_jax.rollout import completed_episode_mean, rollout
-from metapg_jax.seeds import per_seed_cond
 from metapg_jax.types import Params
 
 
@@ -116,46 +113,33 @@ def adapt(cfg: NoiseConfig, state: NoiseState, actor_apply: Callable, actor_para
 
 @dataclasses.dataclass(frozen=True)
 class NoiseExplorer:
-    """The DDPG baselines' exploration: the student's actor plus noise (``config.noise``)."""
+    """The DDPG baselines' exploration: the student's actor plus noise (``config.noise``). It only acts
+    (``metapg_jax.strategy.ActingExplorer``): the loop's cycle is ``rollout_steps`` noisy-actor steps, stored,
+    then ``train_steps`` updates, with the stddev adaptation before every ``adapt_every`` of them for adaptive
+    parameter noise (baselines' ``t_train % param_noise_adaption_interval == 0``)."""
 
     cfg: NoiseConfig
+
+    @property
+    def adapt_every(self) -> int:
+        return self.cfg.adapt_every if self.cfg.kind == "adaptive-param" else 0
 
     def init(self, trainer: Trainer, student, key: jax.Array) -> NoiseState:
         return init(self.cfg, student.actor, trainer.student.action_size)
 
-    def cycle(self, trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
-        """The baseline's cycle: ``rollout_steps`` noisy-actor steps, then ``train_steps`` updates."""
-        cfg, run, learner = self.cfg, trainer.config.run, trainer.student
-        key, k_roll, k_train = jax.random.split(state.key, 3)
-        warm = state.env_steps < run.warmup_steps
-        actor, normalizer = state.student.actor, state.normalizer
+    def episode_start(self, trainer: Trainer, carry: NoiseState, student, key: jax.Array) -> NoiseState:
+        return episode_start(self.cfg, carry, student.actor, key)
 
-        def policy(carry, obs, first, k):
-            k_reset, k_act, k_rand = jax.random.split(k, 3)
-            # Episode starts are rare: the new perturbation (adaptive-param) is drawn only on steps
-            # where some seed starts an episode (per_seed_cond), and kept only for those seeds.
-            carry = per_seed_cond(first, lambda c: episode_start(cfg, c, actor, k_reset), lambda c: c, carry)
-            action, carry = act(cfg, carry, learner.actor_apply, actor, learner.normalize(normalizer, obs), k_act)
-            return jnp.where(warm, trainer.random_action(k_rand), action), carry, None
+    def act(self, trainer: Trainer, carry: NoiseState, student, normalizer, obs, key: jax.Array):
+        learner = trainer.student
+        return act(self.cfg, carry, learner.actor_apply, student.actor, learner.normalize(normalizer, obs), key)
 
-        env_state, explorer, transitions, stats, _ = rollout(
-            trainer.env, policy, state.env_state, state.explorer, k_roll, run.rollout_steps)
-        state = trainer.store(state.replace(env_state=env_state, explorer=explorer, key=key,
-                                            visits=visits_lib.record(state.visits, explore_obs=transitions.obs)),
-                              transitions)
+    def adapt(self, trainer: Trainer, carry: NoiseState, student, normalizer, batch, key: jax.Array) -> NoiseState:
+        learner = trainer.student
+        return adapt(self.cfg, carry, learner.actor_apply, student.actor, learner.normalize(normalizer, batch.obs), key)
 
-        if cfg.kind == "adaptive-param":
-            def between(noise_state, student, batch, k):
-                obs = learner.normalize(state.normalizer, batch.obs)
-                return adapt(cfg, noise_state, learner.actor_apply, student.actor, obs, k)
-
-            state, train_metrics = trainer.student_updates(state, k_train, run.train_steps, between, cfg.adapt_every)
-        else:
-            state, train_metrics = trainer.student_updates(state, k_train, run.train_steps)
-        ret_mean, n_eps = completed_episode_mean(stats)
-        metrics = {**train_metrics, "train_return": ret_mean, "train_episodes": n_eps,
-                   "param_noise_stddev": state.explorer.stddev, "param_noise_distance": state.explorer.distance}
-        return state, metrics
+    def metrics(self, carry: NoiseState) -> dict:
+        return {"param_noise_stddev": carry.stddev, "param_noise_distance": carry.distance}
 
 
 NOISES = ("normal", "ou", "adaptive-param", "none")
