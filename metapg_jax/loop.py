@@ -11,10 +11,10 @@ collects the student's data); both interfaces are in ``metapg_jax.strategy``. It
 
 and the building blocks an explorer's cycle is made of: ``store`` (buffer, normaliser, sample count),
 ``student_updates`` (the student's updates on replay minibatches, with an optional hook between
-blocks of updates), ``random_action``, ``evaluate``. A *cycle* is the explorer's: the baseline's
-``rollout_steps`` noisy-actor steps then ``train_steps`` updates, or one meta-iteration of
-Algorithm 1. This module imports no strategy: ``metapg_jax.train.make_train`` puts the pieces
-together.
+blocks of updates), ``random_action``, ``evaluate``. A *cycle* is the loop's ``acting_cycle`` for an
+explorer that only chooses actions (the baselines' noise: ``steps_per_cycle`` steps, stored, then
+``train_steps`` updates), or the explorer's own (one meta-iteration of Algorithm 1). This module imports no
+strategy: ``metapg_jax.train.make_train`` puts the pieces together.
 
 Both paths give the same numbers for the same key. Seeds are a vmap over keys of these functions
 (``metapg_jax.seeds.vmap_seeds``); the host (``experiments.run``) jits the vmapped ``train_chunk`` once
@@ -46,7 +46,7 @@ from metapg_jax.types import Transition
 
 @struct.dataclass
 class TrainState:
-    student: Any                     # the student's state (metapg_jax.strategy.Student: .actor, and .critic if it has one)
+    student: Any                     # the student's state (strategy.Student: .actor, and .critic if it has one)
     normalizer: norm_lib.NormalizerState
     buffer: replay.ReplayState
     env_state: State                 # the exploring env (episodes continue across cycles)
@@ -90,7 +90,7 @@ class Trainer:
     config: Config
     env: Env
     student: Any    # the learner: a metapg_jax.strategy.Student
-    explorer: Any   # a metapg_jax.strategy.Explorer: init(trainer, student_state, key), cycle(trainer, state)
+    explorer: Any   # a metapg_jax.strategy.ActingExplorer (init, act, ...) or Explorer (init, cycle)
 
     # ------------------------------------------------------------------ init
     def init(self, key: jax.Array) -> TrainState:

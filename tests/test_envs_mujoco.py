@@ -4,8 +4,8 @@ The reference is gymnasium itself (``gymnasium.make('X-v5')``: MuJoCo C,
 float64). Compiling an MJX step on CPU costs ~5-20 s per task, so each task
 is compiled exactly once: ``_probe`` jits ONE function per task that builds
 the initial states (reset noise and states copied from gymnasium) and scans
-the vmapped step over a whole action sequence; the tests below then only
-inspect its (cached) outputs.
+the vmapped step over a whole action sequence; one test per task
+(``test_mjx_task``) then runs every check on its outputs.
 
 Cross-check tolerances (float32 MJX vs float64 MuJoCo C), as
 max |ours - gym| <= tol * max(1, max |gym|) per step, for observations,
@@ -122,9 +122,7 @@ def _dev(ours, ref):
     return float(np.max(np.abs(np.asarray(ours, np.float64) - ref)) / max(1.0, np.max(np.abs(ref))))
 
 
-@pytest.mark.parametrize("name", list(CASES))
-def test_matches_gymnasium(name):
-    p = _probe(name)
+def _check_matches_gymnasium(name, p):
     _, tol, must_terminate = CASES[name]
     obs_t, rew_t, done_t, metrics_t = jax.tree.map(np.asarray, p["traj"])
     worst = {"obs": 0.0, "reward": 0.0}
@@ -147,13 +145,11 @@ def test_matches_gymnasium(name):
     print(f"\n{name}: max relative deviation obs {worst['obs']:.2e}, reward {worst['reward']:.2e}")
 
 
-@pytest.mark.parametrize("name", list(CASES))
-def test_mjx_and_the_c_engine_agree_to_float32_round_off(name):
+def _check_mjx_and_the_c_engine_agree_to_float32_round_off(name, p):
     """The two engines (envs/mujoco_c.py) from the same gymnasium states with the same actions, step
     by step: observations and rewards within the float32 tolerances above, the same terminations."""
     from envs.mujoco_c import MujocoCEnv
 
-    p = _probe(name)
     _, tol, _ = CASES[name]
     c_env = MujocoCEnv(p["env"])
     obs_t, rew_t, done_t, _ = jax.tree.map(np.asarray, p["traj"])
@@ -173,10 +169,8 @@ def test_mjx_and_the_c_engine_agree_to_float32_round_off(name):
 # bisect to float32 resolution (24-25 steps). The other tasks are checked the
 # same way by hand (bitwise equal over 8 envs x 1,000 random steps, see
 # envs/gym_mujoco.py); one compile of stock MJX per task is the cost here.
-@pytest.mark.parametrize("name", ["hopper"])  # contacts: the line search's iteration counts vary most
-def test_early_exit_linesearch_is_stock_physics(name):
+def _check_early_exit_linesearch_is_stock_physics(name, fast):
     stock_loop = _mjx_solver._while_loop_scan
-    fast = _probe(name)
     stock_env = GYMNASIUM_TASKS[name](early_exit_linesearch=False)
 
     @jax.jit
@@ -192,9 +186,7 @@ def test_early_exit_linesearch_is_stock_physics(name):
     assert np.ptp(np.asarray(fast["traj"][0])) > 0.1
 
 
-@pytest.mark.parametrize("name", list(CASES))
-def test_shapes_dtypes_and_structure(name):
-    p = _probe(name)
+def _check_shapes_dtypes_and_structure(name, p):
     env, g = p["env"], p["gym"]["A"]
     assert env.observation_size == g["obs_shape"][0]
     assert env.action_size == g["act_shape"][0]
@@ -231,9 +223,7 @@ def test_shapes_dtypes_and_structure(name):
     np.testing.assert_array_equal(obs[:, 2], obs[:, 0])
 
 
-@pytest.mark.parametrize("name", list(CASES))
-def test_reset_noise(name):
-    p = _probe(name)
+def _check_reset_noise(name, p):
     env, s0 = p["env"], p["s0"]
     qpos0 = np.asarray(s0.pipeline_state.qpos)
     np.testing.assert_array_equal(qpos0[0], qpos0[2])  # same key, same state
@@ -270,6 +260,20 @@ def test_reset_noise(name):
             normal(dv, s)
         else:
             uniform(dv, s)
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_mjx_task(name):
+    """Every check of one task on its probe. One test per task, not one per check: xdist hands consecutive
+    tests to alternate workers, and each worker running a check of a task would compile (or trace, from the
+    session's cache) that task's MJX program again."""
+    p = _probe(name)
+    _check_matches_gymnasium(name, p)
+    _check_mjx_and_the_c_engine_agree_to_float32_round_off(name, p)
+    _check_shapes_dtypes_and_structure(name, p)
+    _check_reset_noise(name, p)
+    if name == "hopper":  # contacts: the line search's iteration counts vary most
+        _check_early_exit_linesearch_is_stock_physics(name, p)
 
 
 def test_hopper_health_matches_gymnasium():
