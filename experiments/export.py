@@ -66,6 +66,9 @@ def main(argv: list[str] | None = None) -> int:
     try:  # a hand-edited or truncated config.json: one line, not a traceback from deep inside the build
         with open(path) as f:
             stored = json.load(f)
+        from experiments.run import import_plugins
+
+        import_plugins(stored.get("run_args", {}).get("plugins") or [])  # a plug-in's strategy and group
         cfg = config_lib.validate(config_lib.from_dict(stored["config"]))
         a = {"seed": int(stored["run_args"]["seed"]), "seeds": int(stored["run_args"]["seeds"])}
     except (OSError, ValueError, KeyError, TypeError) as err:

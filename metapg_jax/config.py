@@ -8,7 +8,8 @@ fail or silently misbehave, before anything is compiled.
 The groups: ``env``, ``run`` and ``ddpg`` (the actor-critic settings every student shares: networks,
 optimisers, batch, tau, gamma, observation normalisation) are the core's; every registered strategy
 (``metapg_jax.strategy``) adds its own group (``config.<name>``), with its defaults per task and preset,
-its schedule and its checks, all declared in the strategy's file. This module names no strategy.
+its schedule and its checks, all declared in the strategy's file. This module imports no strategy and
+branches on none (the defaults, ``method='ddpg'`` and ``student='ddpg'``, are names).
 
 Presets (the core's part; each strategy adds its own):
 * ``paper``: the 2018 OpenAI-baselines DDPG the paper builds on (64-64 + LayerNorm, action at the
@@ -196,8 +197,6 @@ def _coerce(value: Any, typ: Any, name: str) -> Any:
     raise ValueError(f"{name}: cannot set a field of type {typ}")
 
 
-
-
 def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "paper", steps: int | None = None,
                 source: str = "gymnasium", overrides: dict[str, Any] | None = None, physics: str = "mjx",
                 student: str = "ddpg", **flags: Any) -> Config:
@@ -276,7 +275,8 @@ def override(cfg: Config, overrides: dict[str, Any]) -> Config:
     return cfg
 
 
-def _positive(name: str, value: float) -> None:
+def positive(name: str, value: float) -> None:
+    """A one-line ``ValueError`` unless ``value`` is a positive finite number (the checks of every group)."""
     if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
         raise ValueError(f"{name} must be a positive finite number, got {value!r}")
 
@@ -295,11 +295,11 @@ def validate(cfg: Config) -> Config:
     if cfg.env.episode_length < 0:
         raise ValueError(f"env.episode_length must be >= 0 (0 = the task's), got {cfg.env.episode_length}")
     for name in ("total_steps", "rollout_steps", "train_steps", "eval_every", "eval_episodes", "visit_samples"):
-        _positive(f"run.{name}", getattr(cfg.run, name))
+        positive(f"run.{name}", getattr(cfg.run, name))
     if cfg.run.warmup_steps < 0 or cfg.run.buffer_size < 0:
         raise ValueError("run.warmup_steps and run.buffer_size must be >= 0")
     for name in ("actor_lr", "critic_lr", "batch_size", "tau", "gamma", "obs_clip"):
-        _positive(f"ddpg.{name}", getattr(cfg.ddpg, name))
+        positive(f"ddpg.{name}", getattr(cfg.ddpg, name))
     if not cfg.ddpg.hidden or min(cfg.ddpg.hidden) <= 0:
         raise ValueError(f"ddpg.hidden must be a non-empty tuple of positive widths, got {cfg.ddpg.hidden}")
     if not 0 <= cfg.ddpg.critic_action_layer < len(cfg.ddpg.hidden):

@@ -17,7 +17,7 @@ SEED_AXIS = "seeds"
 
 
 def vmap_seeds(fn, **kwargs):
-    """``jax.vmap`` over the seed axis, named ``SEED_AXIS`` (see ``any_over_seeds``)."""
+    """``jax.vmap`` over the seed axis, named ``SEED_AXIS`` (see ``per_seed_cond``)."""
     return jax.vmap(fn, axis_name=SEED_AXIS, **kwargs)
 
 

@@ -4,10 +4,10 @@ registry per kind.
 A *strategy* is a student (the off-policy learner) or an explorer (who collects its data). Each is one file
 that defines the class, its config group and its schedule, and registers a spec here. The built-in ones are
 the modules of ``metapg_jax.strategies``, found and imported the first time the registry is asked
-(:func:`load_builtins`; nothing else names them); a user's file registers itself when ``--plugin FILE.py``
-imports it. The rest of the package asks the registry and never names a strategy:
-``config`` and ``presets`` for the groups, schedules and checks, ``train`` for the objects, the commands
-for the cycle metrics, labels and flags.
+(:func:`load_builtins`; nothing else imports them); a user's file registers itself when ``--plugin FILE.py``
+imports it. The rest of the package asks the registry and neither imports a strategy nor branches on its
+name (``tests/test_strategy.py``): ``config`` for the groups, schedules and checks, ``train`` for the
+objects, the commands for the cycle metrics, labels and flags.
 
 A strategy's contract in brief:
 
@@ -23,7 +23,8 @@ A strategy's contract in brief:
 * students: ``architecture(config)``, how the exported ``policy.npz`` describes the acting policy;
 * explorers: ``steps_per_cycle(config)`` (env steps one cycle stores; default ``run.rollout_steps``), the
   per-cycle metrics written to ``cycles.jsonl`` (``cycle_metrics``) and the panels of their plot, a label
-  for run names, and a command-line shortcut for one field (``flag``, e.g. ``--teacher``).
+  for run names, and a command-line shortcut for one field (``flag``, e.g. ``--teacher``; the command
+  lines are built before ``--plugin`` loads a file, so a plug-in's fields are set with ``--set``).
 """
 
 from __future__ import annotations
@@ -169,15 +170,22 @@ def load_builtins() -> None:
     global _LOADED
     if _LOADED:
         return
-    _LOADED = True
     package = importlib.import_module("metapg_jax.strategies")
     for module in sorted(m.name for m in pkgutil.iter_modules(package.__path__)):
         importlib.import_module(f"metapg_jax.strategies.{module}")
+    _LOADED = True  # after every import: one that failed is tried again, not left half-registered
+
+
+# Names a strategy's group cannot take: the core groups and the other fields and methods of a config.
+RESERVED = frozenset({"env", "run", "ddpg", "groups", "preset", "student", "replace", "explorer_spec",
+                      "steps_per_cycle", "cycles_per_chunk", "num_chunks", "buffer_capacity", "episode_length"})
 
 
 def _check_group(key: str | None, owner: str) -> None:
     if key is None:
         return
+    if key in RESERVED or key.startswith("_"):
+        raise ValueError(f"config group {key!r} of {owner!r}: the name is taken by the config itself")
     for spec in [*_STUDENTS.values(), *_EXPLORERS.values()]:
         other = spec.group_key if isinstance(spec, ExplorerSpec) else (spec.name if spec.group else None)
         if other == key and spec.name != owner:

@@ -61,6 +61,9 @@ def test_a_strategy_group_is_typed_overridable_stored_and_read_back(monkeypatch)
         config_lib.make_config("pendulum", "knobbed", overrides={"knobbed.width": "wide"})
     with pytest.raises(ValueError, match="fields of knobbed: width, steps"):
         config_lib.make_config("pendulum", "knobbed", overrides={"knobbed.depth": "1"})
+    for taken in ("run", "meta", "replace"):  # a core group, another strategy's, a config method
+        with pytest.raises(ValueError, match=f"config group '{taken}'"):
+            strategy.register_explorer("other", lambda config: UniformExplorer(), group=_Knobs, group_name=taken)
 
 
 def test_a_stored_group_nobody_declares_is_refused_and_moved_fields_are_read_in_their_new_place():

@@ -3,10 +3,11 @@
 The rest of ``metapg_jax`` (what a notebook imports to build and ``jit`` a training program) never
 imports this package (``tests/test_imports.py``):
 
-* ``files``: atomic JSON, JSON lines, NumPy archives;
-* ``metrics``: a chunk's metrics as rows, training time, learning curves and their plot;
-* ``progress``: the progress bar and peak memory;
-* ``tensorboard``: TensorBoard event files;
+* ``runfiles``: atomic JSON, JSON lines, NumPy archives;
+* ``metric_rows``: a chunk's metrics as rows, training time, learning curves and their plot;
+* ``terminal``: the progress bar and peak memory;
+* ``tb_events``: TensorBoard event files (a cycle row's metrics are tagged ``teacher/<name>``, the prefix
+  they have always had);
 * ``provenance``: commit, uncommitted changes, machine;
 * ``compile_cache``: the persistent XLA compilation cache;
 * ``checkpoint``: orbax checkpoints of the seed-batched training state;

@@ -52,6 +52,7 @@ import jax
 import jax.numpy as jnp
 
 from metapg_jax import strategy
+from metapg_jax.config import positive
 from metapg_jax.loop import TrainState, Trainer, flatten_time, train_updates
 from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.teacher import Teacher, TeacherState
@@ -282,11 +283,6 @@ def steps_per_cycle(config) -> int:
     return m.explore_steps + m.eval_steps * m.eval_envs + fresh
 
 
-def _positive(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-
-
 def _validate(config) -> None:
     m = config.meta
     if m.teacher not in TEACHERS:
@@ -300,7 +296,7 @@ def _validate(config) -> None:
     if config.run.method != NAME:
         return
     for name in ("explore_steps", "eval_steps", "teacher_steps", "eval_envs"):
-        _positive(f"meta.{name}", getattr(m, name))
+        positive(f"meta.{name}", getattr(m, name))
     # meta.lr = 0 freezes the teacher at its initialisation (a control: the data without the learning).
     if not (math.isfinite(m.lr) and m.lr >= 0):
         raise ValueError(f"meta.lr must be a finite number >= 0 (0 = a frozen teacher), got {m.lr!r}")

@@ -30,6 +30,7 @@ import jax.numpy as jnp
 from flax import struct
 
 from metapg_jax import strategy
+from metapg_jax.config import positive
 from metapg_jax.loop import Trainer
 from metapg_jax.networks import is_layer_norm_path
 from metapg_jax.types import Params
@@ -155,10 +156,10 @@ def _validate(config) -> None:
     if n.kind not in NOISES:
         raise ValueError(f"unknown noise {n.kind!r}; valid noises: {', '.join(NOISES)}")
     if n.kind != "none":
-        _positive("noise.stddev", n.stddev)
-    _positive("noise.adapt_every", n.adapt_every)
+        positive("noise.stddev", n.stddev)
+    positive("noise.adapt_every", n.adapt_every)
     if n.kind == "ou":
-        _positive("noise.ou_dt", n.ou_dt)
+        positive("noise.ou_dt", n.ou_dt)
         if not (math.isfinite(n.ou_theta) and n.ou_theta >= 0):
             raise ValueError(f"noise.ou_theta must be a finite number >= 0, got {n.ou_theta!r}")
     if n.kind == "adaptive-param" and not (math.isfinite(n.adapt_coef) and n.adapt_coef >= 1):
@@ -169,11 +170,6 @@ def _validate(config) -> None:
         raise ValueError(f"run.warmup_steps={run.warmup_steps} is not below the budget of {run.total_steps} "
                          f"env steps: the DDPG run would act at random throughout (lower it with "
                          f"--set run.warmup_steps=N, or raise --steps)")
-
-
-def _positive(name: str, value: float) -> None:
-    if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
 
 
 NAME = "ddpg"
