@@ -685,34 +685,6 @@ def test_tensorboard_is_passed_to_every_cell_and_needs_its_extra(monkeypatch, tm
     assert len(err) == 1 and "tensorboardX" in err[0] and not runs.exists()
 
 
-def test_provenance_is_dirty_for_code_changes_not_for_rewritten_results(tmp_path):
-    import subprocess
-
-    from metapg_jax.host import provenance
-
-    repo = tmp_path / "repo"
-    shutil.copytree(os.path.join(ROOT, "metapg_jax"), repo / "metapg_jax")
-    (repo / "results").mkdir()
-    (repo / "results" / "table.md").write_text("a\n")
-    git = lambda *a: subprocess.run(["git", *a], cwd=repo, check=True, capture_output=True)
-    git("init", "-q")
-    git("add", "-A")
-    git("-c", "user.name=t", "-c", "user.email=t@t", "commit", "-qm", "x")
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location("copied_provenance", repo / "metapg_jax" / "host" / "provenance.py")
-    copied = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(copied)  # its record() reads the copy's repository
-    assert copied.record()["dirty"] is False and copied.uncommitted_diff() == ""
-    (repo / "results" / "table.md").write_text("b\n")  # an output rewritten between cells
-    assert copied.record()["dirty"] is False
-    (repo / "metapg_jax" / "host" / "provenance.py").write_text((repo / "metapg_jax" / "host" / "provenance.py").read_text() + "\n")
-    assert copied.record()["dirty"] is True
-    diff = copied.uncommitted_diff()  # the code change, not the rewritten output
-    assert "metapg_jax/host/provenance.py" in diff and "table.md" not in diff
-    assert provenance.record()["commit"] != copied.record()["commit"]
-
-
 def test_a_call_from_a_dirty_tree_stores_its_diff_and_the_tables_count_it(tmp_path):
     """A dirty call writes uncommitted-<call>.diff beside reproduce.json (named in its call entry), the archive
     keeps it, and the manifest and footer carry the dirty flag, the diffs, every commit and the engine."""
