@@ -132,6 +132,10 @@ class StudentSpec:
     architecture: Callable[[Any], dict] | None = None
     summary: str = ""                                           # a few words for --help
 
+    @property
+    def group_key(self) -> str | None:
+        return self.name if self.group is not None else None
+
 
 @dataclasses.dataclass(frozen=True)
 class ExplorerSpec:
@@ -187,8 +191,7 @@ def _check_group(key: str | None, owner: str) -> None:
     if key in RESERVED or key.startswith("_"):
         raise ValueError(f"config group {key!r} of {owner!r}: the name is taken by the config itself")
     for spec in [*_STUDENTS.values(), *_EXPLORERS.values()]:
-        other = spec.group_key if isinstance(spec, ExplorerSpec) else (spec.name if spec.group else None)
-        if other == key and spec.name != owner:
+        if spec.group_key == key and spec.name != owner:
             raise ValueError(f"config group {key!r} is already registered by {spec.name!r}")
 
 
@@ -196,7 +199,7 @@ def register_student(spec: StudentSpec | str, make: Callable | None = None, **fi
     """Registers a student: a :class:`StudentSpec`, or its name, ``make`` and spec fields. A name registered
     again is replaced (a plug-in re-imported)."""
     spec = spec if isinstance(spec, StudentSpec) else StudentSpec(spec, make, **fields)
-    _check_group(spec.name if spec.group else None, spec.name)
+    _check_group(spec.group_key, spec.name)
     _STUDENTS[spec.name] = spec
     return spec
 
@@ -237,14 +240,8 @@ def explorer(name: str) -> ExplorerSpec:
 
 def groups() -> dict[str, tuple[type, Callable[[Any], Any] | None]]:
     """Every registered strategy's config group: {name: (dataclass, group_defaults)}, in registration order."""
-    out = {}
-    for spec in students().values():
-        if spec.group is not None:
-            out[spec.name] = (spec.group, spec.group_defaults)
-    for spec in explorers().values():
-        if spec.group is not None:
-            out[spec.group_key] = (spec.group, spec.group_defaults)
-    return out
+    return {spec.group_key: (spec.group, spec.group_defaults)
+            for spec in [*students().values(), *explorers().values()] if spec.group is not None}
 
 
 def moved_fields() -> dict[str, str]:
