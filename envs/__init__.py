@@ -125,9 +125,9 @@ def make_raw(name: str, source: str = "gymnasium", physics: str = "mjx", physics
         from envs.pendulum import Pendulum
 
         return Pendulum(**overrides)
-    from envs import gym_mujoco
+    from envs import brax_mujoco, gym_mujoco
 
-    table = gym_mujoco.GYMNASIUM_TASKS if source == "gymnasium" else gym_mujoco.BRAX_TASKS
+    table = gym_mujoco.GYMNASIUM_TASKS if source == "gymnasium" else brax_mujoco.BRAX_TASKS
     task = table[name](**overrides)
     if physics == "mujoco":
         from envs.mujoco_c import MujocoCEnv

@@ -9,14 +9,14 @@ stepped with ``mujoco.mjx`` with gymnasium's frame skip; observation, reward,
 termination and reset noise follow the v5 definitions with v5 default kwargs.
 See /work/shared/DESIGN.md ("Environments") for why we do not use brax's own
 versions of these tasks (different models, time steps and rewards); those
-remain available through ``BRAX_TASKS`` with the same contract.
+remain available through ``BRAX_TASKS`` (``envs/brax_mujoco.py``) with the same contract.
 
 Deviation from the paper (docs/algorithm.md, "Deviations from the paper"): the paper ran
 gym's v1 tasks on MuJoCo 1.31, which cannot run here. v5 differs in details:
 IDP's observation has 9 entries (v1: 11), no alive bonus on the terminal step,
 Reacher's reward uses the post-step distance.
 
-Contract (shared by ``GYMNASIUM_TASKS`` and ``BRAX_TASKS``):
+Contract (shared by ``GYMNASIUM_TASKS`` and ``envs/brax_mujoco.py``'s ``BRAX_TASKS``):
 
 * the math is written for ONE env (no batch dim); callers ``jax.vmap``;
 * ``step`` takes actions in the normalised box [-1, 1]^action_size (clipped,
@@ -36,275 +36,30 @@ Newton solver, and the primitive contact pairs of Hopper and HalfCheetah
 differences from gymnasium are float32 arithmetic and MJX's own collision
 and solver code (see tests/test_envs_mujoco.py for the measured deviations).
 
-Speed: early exit of the Newton solver's line search (``early_exit_linesearch``,
-default on). MJX 3.17 runs the line search as a ``lax.scan`` over
-``opt.ls_iterations`` (50) steps, each a ``lax.cond`` that turns into a no-op
-once the search has converged. Under ``vmap`` a ``cond`` with a batched
-predicate becomes a ``select``, so all 50 steps are computed for every env on
-every solver iteration, whatever the search needed. Measured on random-action
-rollouts (8 envs, uniform / N(0, 0.3) / bang-bang actions): the search stops
-after 0-1 steps on IDP, and after 0-9 steps on Hopper and HalfCheetah except
-for searches that bisect down to float32 resolution (24-25 steps, 13-18% of
-them). While
-tracing our ``step`` and ``reset`` we therefore swap MJX's private
-``solver._while_loop_scan`` for a ``lax.while_loop`` with the same condition
-and the same cap (``_while_loop_capped``); under ``vmap`` a while loop runs
-until the slowest env of the batch has converged and keeps each env's own
-result. Same model, same options, same per-env iterations: the physics is
-unchanged: tests/test_envs_mujoco.py asserts bitwise equality with the stock
-scan on IDP and Hopper, ``python -m experiments.bench --env-speed`` checks it
-on every task, and the gymnasium cross-checks run with it on. Only MJX's
-reverse-mode differentiability through the line search is lost, which
-nothing here uses. ``early_exit_linesearch=False`` gives stock MJX.
+Speed: MJX's line search exits early (``early_exit_linesearch``, default on; the
+physics is unchanged): see ``envs/mujoco_base.py``. The base class ``GymMujocoEnv``,
+model loading and ``state_from_qpos_qvel`` are there too.
 """
 
 from __future__ import annotations
 
-import contextlib
-import os
-import re
-import warnings
 from typing import Callable, Dict, Tuple
 
-import gymnasium
 import jax
 import jax.numpy as jnp
 import mujoco
-import numpy as np
-from brax import envs as brax_envs
-from brax.envs.base import Env, State, Wrapper
-from mujoco import mjx
-from mujoco.mjx._src import solver as _mjx_solver
+from brax.envs.base import Env
+
+from envs.mujoco_base import GymMujocoEnv, _norm, _square
 
 __all__ = [
-    "GymMujocoEnv",
     "InvertedPendulum",
     "InvertedDoublePendulum",
     "Hopper",
     "HalfCheetah",
     "Reacher",
-    "BraxTaskAdapter",
     "GYMNASIUM_TASKS",
-    "BRAX_TASKS",
-    "gymnasium_asset_path",
-    "state_from_qpos_qvel",
 ]
-
-# gymnasium's MujocoEnv resolves relative xml_file names against this folder.
-_GYM_ASSETS = os.path.join(os.path.dirname(gymnasium.__file__), "envs", "mujoco", "assets")
-
-
-def _while_loop_capped(cond_fun, body_fun, init_val, max_iter):
-    """``lax.while_loop`` with the contract of MJX's ``solver._while_loop_scan``:
-    apply ``body_fun`` while ``cond_fun`` holds, at most ``max_iter`` times."""
-
-    def cond(carry):
-        val, i = carry
-        return jnp.logical_and(cond_fun(val), i < max_iter)
-
-    def body(carry):
-        val, i = carry
-        return body_fun(val), i + 1
-
-    return jax.lax.while_loop(cond, body, (init_val, jnp.zeros((), jnp.int32)))[0]
-
-
-@contextlib.contextmanager
-def _linesearch_loop(early_exit: bool):
-    """While active (i.e. while a step is traced), MJX's line search exits early."""
-    if not early_exit or not hasattr(_mjx_solver, "_while_loop_scan"):
-        if early_exit:
-            warnings.warn("mujoco.mjx._src.solver._while_loop_scan not found (another mujoco-mjx "
-                          "version?): early_exit_linesearch ignored, MJX's stock line search is used")
-        yield
-        return
-    stock = _mjx_solver._while_loop_scan
-    _mjx_solver._while_loop_scan = _while_loop_capped
-    try:
-        yield
-    finally:
-        _mjx_solver._while_loop_scan = stock
-
-
-_SETTOTALMASS = re.compile(r'\s+settotalmass="([^"]+)"')
-
-
-def load_model(path: str) -> mujoco.MjModel:
-    """Compiles a gymnasium XML file, the way MuJoCo's deprecation warning for the compiler attribute
-    ``settotalmass`` asks (HalfCheetah's model has ``settotalmass="14"``): the attribute is taken out and
-    ``mj_setTotalmass`` and ``mj_setConst`` are applied to the compiled model. Every array of the model
-    equals the one compiled from the file as it is, bit for bit (checked on HalfCheetah with MuJoCo
-    4.0.1; tests/test_envs_mujoco.py compares them), and MuJoCo writes no warning, so no
-    ``MUJOCO_LOG.TXT`` lands in the working directory. Other files are compiled as they are."""
-    with open(path) as f:
-        xml = f.read()
-    found = _SETTOTALMASS.search(xml)
-    if found is None:
-        return mujoco.MjModel.from_xml_path(path)
-    # Compiled from a string: gymnasium's five task models name no other files (meshes, includes).
-    model = mujoco.MjModel.from_xml_string(_SETTOTALMASS.sub("", xml, count=1))
-    mujoco.mj_setTotalmass(model, float(found.group(1)))
-    mujoco.mj_setConst(model, mujoco.MjData(model))
-    return model
-
-
-def gymnasium_asset_path(xml_file: str) -> str:
-    """Path of an XML file as gymnasium's ``expand_model_path`` resolves it."""
-    if xml_file.startswith((".", "/")):
-        return xml_file
-    if xml_file.startswith("~"):
-        return os.path.expanduser(xml_file)
-    return os.path.join(_GYM_ASSETS, xml_file)
-
-
-def _square(xp, x):
-    """``x**2`` as gymnasium computes it on numpy float64 *scalars*: C ``pow(x, 2)``, which differs
-    from ``x * x`` in the last bit for ~0.1% of values (numpy arrays' ``**2`` is ``x * x``;
-    ``np.float_power`` calls ``pow``). With ``jnp`` (MJX, float32) simply ``x**2``."""
-    if xp is np:
-        return np.float_power(x, 2.0)
-    return x**2
-
-
-def _norm(xp, v):
-    """Euclidean norm over the last axis, as gymnasium's ``np.linalg.norm`` of one vector computes it."""
-    if xp is np:
-        # numpy's 1-D norm is sqrt(v.dot(v)); rows one at a time so a batch gives the same bits.
-        flat = v.reshape(-1, v.shape[-1])
-        return np.array([np.linalg.norm(r) for r in flat]).reshape(v.shape[:-1])
-    return xp.linalg.norm(v, axis=-1)
-
-
-class GymMujocoEnv(Env):
-    """Shared machinery of the gymnasium-on-MJX tasks (gymnasium ``MujocoEnv``).
-
-    Subclasses set ``gym_id`` and implement ``_obs_size``, ``_get_obs``,
-    ``sample_qpos_qvel`` (reset noise) and ``_reward_done``; ``_metric_keys``
-    lists the reward components written to ``State.metrics``.
-
-    The task math (``_get_obs``, ``_reward_done``, ``is_healthy``) is written
-    once for both engines: it takes the array module ``xp`` and a physics view
-    ``data`` with ``qpos``, ``qvel`` and the ``derived_fields`` the task reads
-    (MJX: ``jax.numpy`` on one ``mjx.Data``, float32; MuJoCo's C engine,
-    ``envs/mujoco_c.py``: ``numpy`` on (n, ...) float64 arrays of a batch), so
-    it indexes with ``[..., i]`` and reduces over ``axis=-1``.
-    """
-
-    gym_id: str = ""
-    _metric_keys: Tuple[str, ...] = ()
-    # MjData fields besides qpos/qvel that _get_obs/_reward_done read (computed by the step).
-    derived_fields: Tuple[str, ...] = ()
-
-    def __init__(self, xml_file: str, frame_skip: int, early_exit_linesearch: bool = True):
-        # See the module docstring ("Speed"); False gives MJX's stock line search.
-        self.early_exit_linesearch = bool(early_exit_linesearch)
-        self.mj_model = load_model(gymnasium_asset_path(xml_file))
-        self.mjx_model = mjx.put_model(self.mj_model)
-        # A template mjx.Data (as after gymnasium's mj_resetData) that reset
-        # fills in; built once here so reset does no host-side work.
-        self._data0 = mjx.make_data(self.mjx_model)
-        self.frame_skip = int(frame_skip)
-        # Python float, as gymnasium's MujocoEnv.dt (timestep * frame_skip).
-        self.dt = float(self.mj_model.opt.timestep) * self.frame_skip
-        # gymnasium's init_qpos/init_qvel are MjData's values after creation.
-        self.init_qpos = jnp.asarray(self.mj_model.qpos0, dtype=jnp.float32)
-        self.init_qvel = jnp.zeros(self.mj_model.nv, dtype=jnp.float32)
-        # Action space of gymnasium's MujocoEnv is the actuators' ctrlrange; we
-        # expose [-1, 1] instead and rescale in step.
-        ctrlrange = np.asarray(self.mj_model.actuator_ctrlrange, dtype=np.float32)
-        self._ctrl_low = jnp.asarray(ctrlrange[:, 0])
-        self._ctrl_high = jnp.asarray(ctrlrange[:, 1])
-        # float64 for the C engine, which scales on the host (envs/mujoco_c.py).
-        self._ctrlrange64 = np.array(self.mj_model.actuator_ctrlrange, dtype=np.float64)
-
-    # -- Brax Env interface -------------------------------------------------
-
-    @property
-    def observation_size(self) -> int:
-        return self._obs_size()
-
-    @property
-    def action_size(self) -> int:
-        return int(self.mj_model.nu)
-
-    @property
-    def backend(self) -> str:
-        return "mjx"
-
-    def reset(self, rng: jax.Array) -> State:
-        qpos, qvel = self.sample_qpos_qvel(rng)
-        return self.state_from_qpos_qvel(qpos, qvel)
-
-    def step(self, state: State, action: jax.Array) -> State:
-        action = jnp.clip(jnp.asarray(action, jnp.float32), -1.0, 1.0)
-        ctrl = self.scale_action(action)
-        data0 = state.pipeline_state
-        data = data0.replace(ctrl=ctrl)
-        # gymnasium's do_simulation: ctrl held for frame_skip mj_steps. (Its
-        # extra mj_rnePostConstraint only fills cacc/cfrc_*, unused here.)
-        with _linesearch_loop(self.early_exit_linesearch):
-            data = jax.lax.fori_loop(
-                0, self.frame_skip, lambda _, d: mjx.step(self.mjx_model, d), data
-            )
-        obs = self._get_obs(jnp, data)
-        reward, terminated, metrics = self._reward_done(jnp, data0, data, ctrl, obs)
-        return state.replace(
-            pipeline_state=data,
-            obs=obs,
-            reward=jnp.asarray(reward, jnp.float32),
-            done=jnp.asarray(terminated, jnp.float32),
-            metrics={k: jnp.asarray(v, jnp.float32) for k, v in metrics.items()},
-        )
-
-    # -- helpers --------------------------------------------------------------
-
-    def scale_action(self, action: jax.Array, xp=jnp) -> jax.Array:
-        """Map a normalised action in [-1, 1] linearly onto ctrlrange (float32 with ``jnp``,
-        float64 with ``np``)."""
-        if xp is np:
-            low, high = self._ctrlrange64[:, 0], self._ctrlrange64[:, 1]
-            return low + (np.asarray(action, np.float64) + 1.0) * 0.5 * (high - low)
-        return self._ctrl_low + (action + 1.0) * 0.5 * (self._ctrl_high - self._ctrl_low)
-
-    def state_from_qpos_qvel(self, qpos: jax.Array, qvel: jax.Array) -> State:
-        """State with the given joint positions/velocities, as gymnasium's
-        ``reset`` (``mj_resetData`` then ``set_state``, i.e. ``mj_forward``)."""
-        data = self._data0.replace(
-            qpos=jnp.asarray(qpos, jnp.float32), qvel=jnp.asarray(qvel, jnp.float32)
-        )
-        # forward fills the derived quantities (site/body positions, constraint
-        # forces) that gymnasium's reset observations read.
-        with _linesearch_loop(self.early_exit_linesearch):
-            data = mjx.forward(self.mjx_model, data)
-        zero = jnp.zeros((), jnp.float32)
-        return State(
-            pipeline_state=data,
-            obs=self._get_obs(jnp, data),
-            reward=zero,
-            done=zero,
-            metrics={k: zero for k in self._metric_keys},
-            info={},
-        )
-
-    def _uniform(self, rng, size, scale):
-        return jax.random.uniform(rng, (size,), jnp.float32, -scale, scale)
-
-    # -- per task ---------------------------------------------------------------
-
-    def _obs_size(self) -> int:
-        raise NotImplementedError
-
-    def _get_obs(self, xp, data) -> jax.Array:
-        """The observation of ``data`` (written once for both engines, see the module docstring)."""
-        raise NotImplementedError
-
-    def sample_qpos_qvel(self, rng: jax.Array) -> Tuple[jax.Array, jax.Array]:
-        """Initial (qpos, qvel) with gymnasium's ``reset_model`` noise."""
-        raise NotImplementedError
-
-    def _reward_done(self, xp, data0, data, ctrl, obs):
-        """Return (reward, terminated, metrics) for the transition data0 -> data."""
-        raise NotImplementedError
 
 
 class InvertedPendulum(GymMujocoEnv):
@@ -630,114 +385,10 @@ class Reacher(GymMujocoEnv):
         metrics = {"reward_dist": reward_dist, "reward_ctrl": reward_ctrl}
         return reward_dist + reward_ctrl, xp.zeros(reward_dist.shape, bool), metrics
 
-
-def state_from_qpos_qvel(env: GymMujocoEnv, qpos, qvel) -> State:
-    """State of ``env`` at joint positions ``qpos`` and velocities ``qvel``.
-
-    Mirrors gymnasium's ``MujocoEnv.set_state`` after ``mj_resetData`` (so
-    derived quantities come from ``mj_forward``); used to start from a state
-    copied out of gymnasium. Works under jit/vmap.
-    """
-    return env.state_from_qpos_qvel(qpos, qvel)
-
-
 GYMNASIUM_TASKS: Dict[str, Callable[..., Env]] = {
     "inverted_pendulum": InvertedPendulum,
     "inverted_double_pendulum": InvertedDoublePendulum,
     "hopper": Hopper,
     "halfcheetah": HalfCheetah,
     "reacher": Reacher,
-}
-
-
-# --- brax's own versions, adapted to the same contract ------------------------
-
-
-class BraxTaskAdapter(Wrapper):
-    """Brax's own task env (mjx backend) under this module's contract.
-
-    Brax's five tasks already take actions in [-1, 1] (its inverted_pendulum
-    rescales onto its [-3, 3] ctrlrange itself, the others have ctrlrange
-    [-1, 1]) and their ``done`` is already the termination condition without a
-    time limit. What this adapter adds: clipping actions to [-1, 1], float32
-    reward/done, an empty ``info`` at reset, ``info`` passed through step
-    unchanged (brax's inverted_pendulum would otherwise add a ``time_out``
-    key), and an ``observation_size`` that is computed once, by tracing.
-    """
-
-    def __init__(self, env: Env, name: str):
-        super().__init__(env)
-        self.brax_name = name
-        self.gym_id = None
-        self.frame_skip = int(env.unwrapped._n_frames)
-        self.dt = float(env.unwrapped.dt)
-        self._obs_size_cache = None
-
-    @property
-    def observation_size(self) -> int:
-        # brax's PipelineEnv runs an eager reset for this; tracing one is
-        # enough and much cheaper.
-        if self._obs_size_cache is None:
-            obs = jax.eval_shape(self.env.reset, jax.random.PRNGKey(0)).obs
-            self._obs_size_cache = int(obs.shape[-1])
-        return self._obs_size_cache
-
-    def reset(self, rng: jax.Array) -> State:
-        state = self.env.reset(rng)
-        return state.replace(
-            reward=jnp.asarray(state.reward, jnp.float32),
-            done=jnp.asarray(state.done, jnp.float32),
-            metrics={k: jnp.asarray(v, jnp.float32) for k, v in state.metrics.items()},
-            info={},
-        )
-
-    def step(self, state: State, action: jax.Array) -> State:
-        action = jnp.clip(jnp.asarray(action, jnp.float32), -1.0, 1.0)
-        out = self.env.step(state, action)
-        return out.replace(
-            reward=jnp.asarray(out.reward, jnp.float32),
-            done=jnp.asarray(out.done, jnp.float32),
-            metrics={k: jnp.asarray(v, jnp.float32) for k, v in out.metrics.items()},
-            info=state.info,
-        )
-
-
-@contextlib.contextmanager
-def without_the_settotalmass_warning():
-    """While brax (or gymnasium, the tests' reference) compiles a model file it reads itself, where
-    ``load_model``'s fix cannot reach: MuJoCo's deprecation warning for ``settotalmass`` (brax's and
-    gymnasium's half_cheetah.xml) is dropped instead of going to MUJOCO_LOG.TXT in the working directory; any other MuJoCo warning is
-    a Python warning. Installed on the calling thread around model loading only, then restored."""
-    def handler(message: str) -> None:
-        if "'settotalmass' is deprecated" not in message:
-            warnings.warn(f"MuJoCo: {message}", RuntimeWarning, stacklevel=2)
-
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(handler)
-    try:
-        yield
-    finally:
-        mujoco.set_mju_user_warning(previous)
-
-
-def _brax_task(name: str) -> Callable[..., Env]:
-    def make(**overrides) -> Env:
-        with without_the_settotalmass_warning():
-            env = brax_envs.get_environment(name, backend="mjx", **overrides)
-        return BraxTaskAdapter(env, name)
-
-    make.__name__ = f"brax_{name}"
-    make.__doc__ = f"brax's own '{name}' env on the mjx backend, adapted to the contract."
-    return make
-
-
-BRAX_TASKS: Dict[str, Callable[..., Env]] = {
-    name: _brax_task(name)
-    for name in (
-        "inverted_pendulum",
-        "inverted_double_pendulum",
-        "hopper",
-        "halfcheetah",
-        "reacher",
-    )
 }

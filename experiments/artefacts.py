@@ -37,12 +37,12 @@ from that archive, and writes, under the results folder:
 Every number comes from the stored results; cells without a finished run are
 shown as "not run" (or "incomplete"), never estimated.
 
-Definitions (final return, ±, CI, p; also written into the files): ``experiments.stats``.
+Definitions (final return, ±, CI, p; also written into the files): ``experiments.build.stats``.
 
-Layout: ``experiments.grid`` (tasks, methods, baselines), ``experiments.stats`` (statistics and
-number formatting), ``experiments.cells`` (reading run folders, the committed archive,
-provenance), ``experiments.tables`` (Table 2, steps to threshold, comparisons, behaviour, README.md),
-``experiments.figures`` (curves, teacher designs, visitation); this module rebuilds everything
+Layout: ``experiments.build.grid`` (tasks, methods, baselines), ``experiments.build.stats`` (statistics and
+number formatting), ``experiments.build.cells`` (reading run folders, the committed archive,
+provenance), ``experiments.build.tables`` (Table 2, steps to threshold, comparisons, behaviour, README.md),
+``experiments.build.figures`` (curves, teacher designs, visitation); this module rebuilds everything
 (``build_all``) and is the command line.
 """
 
@@ -55,8 +55,8 @@ import os
 import sys
 from typing import Sequence
 
-from experiments import cells, figures, tables
-from experiments.grid import BASELINES, GRIDS, TASKS, baseline_for, grid_label, methods_for
+from experiments.build import behaviour, cells, figures, readme, tables
+from experiments.build.grid import BASELINES, GRIDS, TASKS, baseline_for, grid_label, methods_for
 
 
 def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Sequence[str] = TASKS,
@@ -65,7 +65,7 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
               anchors_path: str | None = None) -> dict:
     """Rebuilds every artefact from ``<runs_dir>/<preset>/<task>/<method>``; returns the manifest.
 
-    ``methods`` defaults to ``student``'s grid (``experiments.grid.methods_for``). Finished run folders are
+    ``methods`` defaults to ``student``'s grid (``experiments.build.grid.methods_for``). Finished run folders are
     first copied into the committed archive ``<results>/cells/<task>/<method>`` (``cells.archive_cell``);
     cells without a finished run folder are read from there. The tables show the tasks and methods with a
     stored cell (the grid's others are listed in README.md and the manifest, not shown as "not run").
@@ -120,10 +120,10 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
                                              out_dir, footer, preset, build["commit"], student=student)
     files += tables.write_comparisons(tables.comparison_rows(results, tasks, methods), out_dir, footer, preset,
                                       build["commit"], student=student)
-    files += tables.write_behaviour(tables.behaviour_rows(results, tasks, methods), out_dir, footer, preset,
+    files += behaviour.write_behaviour(behaviour.behaviour_rows(results, tasks, methods), out_dir, footer, preset,
                                     build["commit"], student=student)
     _remove_stale(out_dir, ("coverage.md", "coverage.json"))
-    files += tables.write_coverage(tables.coverage_rows(results, tasks, baseline), out_dir, footer, preset, baseline,
+    files += behaviour.write_coverage(behaviour.coverage_rows(results, tasks, baseline), out_dir, footer, preset, baseline,
                                    build["commit"], student=student)
     files += figures.write_teacher_designs(results, out_dir, build, preset, student=student)
     _remove_stale(out_dir, [os.path.basename(p) for p in glob.glob(os.path.join(out_dir, "visitation_*.png"))])
@@ -136,7 +136,7 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
                 "grid_without_cells": {"tasks": [t for t in planned_tasks if t not in tasks],
                                        "methods": [m for m in planned_methods if m not in methods]},
                 **({"aggregate_not_built": aggregate_note} if aggregate_note else {})}
-    files.append(tables.write_readme(out_dir, manifest, rows, methods, footer, families))
+    files.append(readme.write_readme(out_dir, manifest, rows, methods, footer, families))
     with open(os.path.join(out_dir, "manifest.json"), "w") as f:
         json.dump(manifest, f, indent=2, default=tables.json_default)
     return manifest
@@ -165,7 +165,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--results-dir", default="results", help="output folder (a non-paper preset goes to <dir>/<preset>)")
     p.add_argument("--preset", default="paper", choices=tuple(BASELINES))
     p.add_argument("--student", default="ddpg", choices=tuple(GRIDS),
-                   help="whose grid the run folders hold: ddpg (default) or td3 (methods: experiments.grid.GRIDS)")
+                   help="whose grid the run folders hold: ddpg (default) or td3 (methods: experiments.build.grid.GRIDS)")
     add_figure_options(p)
     return p
 

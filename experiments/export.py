@@ -66,7 +66,7 @@ def main(argv: list[str] | None = None) -> int:
     try:  # a hand-edited or truncated config.json: one line, not a traceback from deep inside the build
         with open(path) as f:
             stored = json.load(f)
-        from experiments.run import import_plugins
+        from experiments.training.args import import_plugins
 
         import_plugins(stored.get("run_args", {}).get("plugins") or [])  # a plug-in's strategy and group
         cfg = config_lib.validate(config_lib.from_dict(stored["config"]))
@@ -106,7 +106,7 @@ def replay_in_gymnasium(policy_path: str, gym_id: str, seed: int, episodes: int)
     import gymnasium
     import numpy as np
 
-    from envs.gym_mujoco import without_the_settotalmass_warning
+    from envs.mujoco_base import without_the_settotalmass_warning
     from metapg_jax.host.policy import load_policy
 
     act = load_policy(policy_path, seed=seed)

@@ -43,7 +43,6 @@ first checkpoint says so in one line, with the command that starts it again.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import shutil
 import sys
@@ -53,17 +52,13 @@ import envs
 from metapg_jax import config as config_lib
 from metapg_jax import strategy
 from metapg_jax.host import compile_cache
+from metapg_jax.host.processes import barrier, maybe_initialize_distributed, to_host
 from metapg_jax.host.runner import Signals, Stopped, restart_command, run_chunks, stop_message
 
-# The explorers' command-line shortcuts for one field of their group (``--teacher``, ``--noise``;
-# metapg_jax.strategy.flags): {option: (explorer, dotted field)}.
-FLAGS = strategy.flags()
-# Arguments that define the run; stored in config.json so --resume can rebuild and compare it. The main job
-# trains the paper's teacher: --method defaults to meta.
-RUN_ARGS = {"env": "pendulum", "method": "meta", **{flag: None for flag in FLAGS}, "preset": "paper",
-            "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "auto",
-            "student": "ddpg", "overrides": [], "plugins": []}
-
+from experiments.training.args import (FLAGS, RUN_ARGS, check_devices, config_from_run_args, physics_label,
+                                       resolved_run_args, resume_args, run_args, run_label)
+from experiments.training.finish import finalize, record_extension
+from experiments.training.memory import abstract_keys, check_fits, state_bytes
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
@@ -133,164 +128,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def parse_overrides(items: list[str]) -> dict[str, str]:
-    out = {}
-    for item in items:
-        if "=" not in item:
-            raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
-        k, v = item.split("=", 1)
-        out[k.strip()] = v.strip()
-    return out
-
-
-def run_args(args: argparse.Namespace, stored: dict | None = None) -> dict:
-    """The run-defining arguments: given ones, else the stored run's (on resume), else the defaults."""
-    # (A stored run older than an argument has the argument's default.)
-    base = dict(RUN_ARGS if stored is None else {**RUN_ARGS, **stored})
-    for k in RUN_ARGS:
-        v = getattr(args, k)
-        if v is not None:
-            # --set on a resumed run adds to the stored overrides (and must not change anything).
-            base[k] = list(base["overrides"]) + v if k == "overrides" else v
-    return base
-
-
-def import_plugins(names: list[str]) -> None:
-    """Imports each ``--plugin`` (a dotted module name, or a path to a .py file) once per process."""
-    import importlib
-    import importlib.util
-
-    for name in names:
-        if name.endswith(".py"):
-            path = os.path.abspath(name)
-            module_name = "metapg_plugin_" + "".join(c if c.isalnum() else "_" for c in path)
-            if module_name in sys.modules:
-                continue
-            if not os.path.isfile(path):
-                raise ValueError(f"--plugin {name}: no such file")
-            spec = importlib.util.spec_from_file_location(module_name, path)
-            module = importlib.util.module_from_spec(spec)
-            sys.modules[module_name] = module
-            try:
-                spec.loader.exec_module(module)
-            except Exception as err:
-                del sys.modules[module_name]
-                raise ValueError(f"--plugin {name}: importing it failed: {type(err).__name__}: {err}") from None
-        else:
-            try:
-                importlib.import_module(name)
-            except ImportError as err:
-                raise ValueError(f"--plugin {name}: cannot import it: {err}") from None
-
-
-def config_from_run_args(a: dict) -> config_lib.Config:
-    """Builds and validates the config; raises ValueError with one line on bad input. ``a["physics"]``
-    may be 'auto' (make_config resolves it; ``resolved_run_args`` stores the engine it chose)."""
-    import_plugins(a.get("plugins") or [])
-    if a["seeds"] <= 0:
-        raise ValueError(f"--seeds must be positive, got {a['seeds']}")
-    if a["steps"] is not None and a["steps"] <= 0:
-        raise ValueError(f"--steps must be positive, got {a['steps']}")
-    if not 0 <= a["seed"] < 2 ** 32:
-        raise ValueError(f"--seed must be in [0, 2**32), got {a['seed']}")
-    for flag, (owner, _) in FLAGS.items():
-        if a.get(flag) is not None and a["method"] != owner:
-            raise ValueError(f"--{flag} applies to --method={owner} only")
-    cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], steps=a["steps"],
-                                 source=a["source"], overrides=parse_overrides(a["overrides"]),
-                                 physics=a["physics"], student=a["student"],
-                                 **{flag: a.get(flag) for flag in FLAGS})
-    return config_lib.validate(cfg)
-
-
-def resolved_run_args(a: dict, cfg: config_lib.Config) -> dict:
-    """The run args as stored: ``physics`` names the engine the config resolved (never 'auto'), so a
-    resume on another backend keeps the engine the run started on."""
-    return {**a, "physics": cfg.env.physics}
-
-
-def _physics_label(cfg: config_lib.Config) -> str:
-    if cfg.env.name == "pendulum":
-        return "JAX"
-    return "MuJoCo C" if cfg.env.physics == "mujoco" else "MJX"
-
-
-def run_label(cfg: config_lib.Config) -> str:
-    """E.g. 'pendulum meta/independent' or 'hopper ddpg/adaptive-param (td3)': the explorer's label, and the
-    student where it is not the default one."""
-    label = cfg.explorer_spec.label
-    detail = f"/{label(cfg)}" if label else ""
-    student = "" if cfg.student == RUN_ARGS["student"] else f" ({cfg.student})"
-    return f"{cfg.env.name} {cfg.run.method}{detail}{student}"
-
-
-def check_devices(num_seeds: int) -> None:
-    import jax
-
-    n = jax.device_count()
-    if num_seeds % n:
-        raise ValueError(f"--seeds={num_seeds} is not a multiple of the {n} devices the seed axis is sharded over; "
-                         f"use a multiple of {n} (or limit the devices, e.g. CUDA_VISIBLE_DEVICES)")
-
-
-def _available_host_bytes() -> int:
-    """Memory this process can still take: MemAvailable (Linux), else the physical memory."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-
-
-def _gib(n: float) -> str:
-    """Bytes in binary units, e.g. '18.7 GiB', '6.4 PiB'."""
-    for power, unit in ((50, "PiB"), (40, "TiB"), (30, "GiB")):
-        if n >= 2 ** power:
-            return f"{n / 2 ** power:,.1f} {unit}"
-    return f"{n / 2**20:,.0f} MiB"
-
-
-def state_bytes(init, *args) -> int:
-    """Bytes of the state ``init(*args)`` returns, from its shapes alone (``jax.eval_shape``: nothing runs,
-    nothing compiles). ``args`` may be ``jax.ShapeDtypeStruct``s."""
-    import jax
-
-    return sum(x.size * x.dtype.itemsize for x in jax.tree.leaves(jax.eval_shape(init, *args)))
-
-
-def check_fits(nbytes: int, what: str) -> None:
-    """Raises ``ValueError`` (one line: needed vs available) when a training state of ``nbytes`` (all seeds,
-    all processes) cannot fit: on a CPU the state and a checkpoint's copy of it in host memory; on an
-    accelerator the state in its devices' memory (and the checkpoint's copy in host memory)."""
-    import jax
-
-    share = nbytes // jax.process_count()  # each process holds its devices' seeds
-    cpu = jax.default_backend() == "cpu"
-    host_needed, host_available = (2 if cpu else 1) * share, _available_host_bytes()
-    if host_needed > host_available:
-        why = "its training state and a checkpoint's copy of it" if cpu else "a checkpoint's copy of its training state"
-        raise ValueError(f"{what} needs about {_gib(host_needed)} of memory ({why}); this machine has "
-                         f"{_gib(host_available)} available: use fewer seeds or a smaller replay buffer "
-                         f"(--set run.buffer_size=N)")
-    if not cpu:
-        limits = [(d.memory_stats() or {}).get("bytes_limit") for d in jax.local_devices()]
-        if all(limits) and share > sum(limits):
-            raise ValueError(f"{what} needs about {_gib(share)} of device memory for its training state; the "
-                             f"{len(limits)} {jax.default_backend()} device(s) have {_gib(sum(limits))}: use fewer "
-                             f"seeds or a smaller replay buffer (--set run.buffer_size=N)")
-
-
-def abstract_keys(num_seeds: int):
-    """The shape of ``seed_keys(seed, num_seeds)``, without making them."""
-    import jax
-
-    key = jax.eval_shape(jax.random.PRNGKey, 0)
-    return jax.ShapeDtypeStruct((num_seeds, *key.shape), key.dtype)
-
-
 def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, bool, int | None]:
     """Everything that can fail on user input, before anything compiles: (config, run args, out, resume,
     the stored budget when the resume extends it, else None)."""
@@ -303,51 +140,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
         tb_events.require_tensorboard()
     if args.resume:
         out = args.resume
-        path = os.path.join(out, "config.json")
-        if not os.path.exists(path):
-            raise ValueError(f"--resume {out}: no config.json there (not a run folder)")
-        with open(path) as f:
-            stored = json.load(f)
-        if args.out is not None and os.path.abspath(args.out) != os.path.abspath(out):
-            raise ValueError("--out and --resume name different folders; a resumed run writes into its own folder")
-        # A run stored before --physics existed ran on its config's engine (MJX, the default then).
-        stored_args = {"physics": stored["config"]["env"].get("physics", "mjx"), **stored["run_args"]}
-        a = run_args(args, stored_args)
-        cfg = config_from_run_args(a)
-        a = resolved_run_args(a, cfg)
-        old_steps, new_steps = stored["config"]["run"]["total_steps"], cfg.run.total_steps
-        if new_steps != old_steps:
-            if new_steps < old_steps:
-                raise ValueError(f"--resume {out}: --steps={new_steps} is below the stored budget of {old_steps:,} "
-                                 f"env steps; a run can be extended, not shortened")
-            extend_from = old_steps
-            # Where the default evaluation interval is derived from the budget (config.make_config: budgets
-            # under ten task intervals, or not a multiple of one), an extension keeps the stored interval.
-            stored_every = stored["config"]["run"]["eval_every"]
-            if cfg.run.eval_every != stored_every and "run.eval_every" not in parse_overrides(a["overrides"]):
-                if new_steps % stored_every:
-                    raise ValueError(f"--resume {out}: the run's evaluation interval, {stored_every:,} env steps, "
-                                     f"does not divide --steps={new_steps:,}; extend it to a multiple of "
-                                     f"{stored_every:,} or start a new run")
-                a = {**a, "overrides": list(a["overrides"]) + [f"run.eval_every={stored_every}"]}
-                cfg = config_from_run_args(a)
-                a = resolved_run_args(a, cfg)
-        # An extension changes the budget only (see the module docstring).
-        # (Read back through from_dict: fields newer than the stored run compare as their defaults.)
-        stored_cfg = config_lib.to_dict(config_lib.from_dict(stored["config"]))
-        same_budget = {**stored_cfg, "run": {**stored_cfg["run"], "total_steps": new_steps}}
-        differences = config_lib.diff(same_budget, config_lib.to_dict(cfg))
-        differences += [f"{k} ({stored['run_args'][k]!r} -> {a[k]!r})" for k in ("seeds", "seed")
-                        if stored["run_args"][k] != a[k]]
-        if differences:
-            what = f"extending it to {new_steps:,} steps would also change" if extend_from else \
-                "the options given change the stored run"
-            hint = " (pass the stored value with --set)" if extend_from else ""
-            raise ValueError(f"--resume {out}: {what}: {'; '.join(differences)}{hint}")
-        from metapg_jax.host.checkpoint import saved_steps
-
-        if not saved_steps(os.path.join(out, "checkpoints")):
-            raise ValueError(f"--resume {out}: no checkpoint under {out}/checkpoints; nothing to resume from")
+        cfg, a, extend_from = resume_args(args, out)
     else:
         a = run_args(args)
         cfg = config_from_run_args(a)
@@ -368,7 +161,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
-        _maybe_initialize_distributed()
+        maybe_initialize_distributed()
         cfg, a, out, resume, extend_from = prepare(args)
         cache = compile_cache.resolve(args.compile_cache)
     except ValueError as err:
@@ -392,30 +185,6 @@ def main(argv: list[str] | None = None) -> int:
                checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes,
                extend_from=extend_from, tensorboard=args.tensorboard,
                restart=restart_command("experiments.run", argv))
-
-
-def _maybe_initialize_distributed() -> None:
-    """Multi-host: ``jax.distributed.initialize()`` when JAX_COORDINATOR_ADDRESS is set.
-
-    Set on every host JAX_COORDINATOR_ADDRESS (host:port of process 0) and, unless the processes
-    were launched by SLURM's ``srun`` or Open MPI's ``mpirun`` (whose variables JAX reads itself),
-    JAX_NUM_PROCESSES and JAX_PROCESS_ID; the seed axis is then sharded over the devices of all
-    hosts. Without JAX_COORDINATOR_ADDRESS every process runs on its own devices only.
-    """
-    if not os.environ.get("JAX_COORDINATOR_ADDRESS"):
-        return
-    import jax
-
-    if jax.distributed.is_initialized():  # experiments.reproduce runs many cells in one process
-        return
-    kwargs = {}
-    for var, name in (("JAX_NUM_PROCESSES", "num_processes"), ("JAX_PROCESS_ID", "process_id")):
-        value = os.environ.get(var, "").strip()
-        if value:
-            if not value.isdigit():
-                raise ValueError(f"{var} must be a non-negative integer, got {value!r}")
-            kwargs[name] = int(value)
-    jax.distributed.initialize(**kwargs)
 
 
 def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
@@ -466,13 +235,13 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
                 "jax_version": jax.__version__, "backend": jax.default_backend(),
                 "devices": [str(d) for d in jax.devices()], **provenance.record()})
     elif extend_from is not None and main_process:
-        _record_extension(out, cfg, a, extend_from)
-    _barrier("metapg-run-folder")  # process 0 has (re)made the folder before anyone writes into it
+        record_extension(out, cfg, a, extend_from)
+    barrier("metapg-run-folder")  # process 0 has (re)made the folder before anyone writes into it
 
     trainer = trainer or make_train(cfg)
     keys = seed_keys(seed, num_seeds)
     name = run_label(cfg)
-    print(f"{name} ({cfg.preset} preset, {cfg.env.source} source, {_physics_label(cfg)} physics): {num_seeds} seeds x "
+    print(f"{name} ({cfg.preset} preset, {cfg.env.source} source, {physics_label(cfg)} physics): {num_seeds} seeds x "
           f"{cfg.run.total_steps:,} env steps, {cfg.num_chunks} evaluations every {cfg.run.eval_every:,} steps "
           f"({cfg.cycles_per_chunk} cycles of {cfg.steps_per_cycle} steps) on {jax.device_count()} "
           f"{jax.default_backend()} device(s); output {out}", flush=True)
@@ -557,7 +326,7 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
 
     try:
         state, status, chunks_run = run_chunks(
-            chunk_fn, state, start=start, num_chunks=cfg.num_chunks, signals=signals, fetch=_to_host, record=record,
+            chunk_fn, state, start=start, num_chunks=cfg.num_chunks, signals=signals, fetch=to_host, record=record,
             progress=progress, save=lambda done, s: checkpointer.save(done, s, ckpt_meta()), due=due,
             interrupted=f"; continue with: python -m experiments.run --resume {out}")
     finally:
@@ -572,7 +341,7 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
     if status:
         return status
     train_s = time.perf_counter() - t_train
-    state = _to_host(state)  # a collective with several processes: every process takes part
+    state = to_host(state)  # a collective with several processes: every process takes part
     if not main_process:
         return 0
     finalize(cfg, out, state, num_seeds, plot=plot, extra={
@@ -583,79 +352,6 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
         "devices": jax.device_count(), "backend": jax.default_backend(), "resumed_from_chunk": start,
         **({"extended_from_steps": extend_from} if extend_from else {})})
     return 0
-
-
-def _record_extension(out: str, cfg: config_lib.Config, a: dict, old_steps: int) -> None:
-    """Before an extension runs: config.json gets the new budget (so a plain ``--resume`` continues the
-    extension) and an ``extensions`` entry; the shorter run's summary is kept as ``summary_<steps>.json``."""
-    from metapg_jax.host import provenance, runfiles
-
-    path = os.path.join(out, "config.json")
-    with open(path) as f:
-        stored = json.load(f)
-    summary = os.path.join(out, "summary.json")
-    if os.path.exists(summary):
-        os.replace(summary, os.path.join(out, f"summary_{old_steps}.json"))
-    entry = {"from_steps": old_steps, "to_steps": cfg.run.total_steps,
-             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **provenance.record()}
-    runfiles.write_json_atomic(path, {**stored, "config": config_lib.to_dict(cfg), "run_args": a,
-                                       "extensions": stored.get("extensions", []) + [entry]})
-
-
-def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool = True, extra: dict | None = None):
-    """Summary, plots, the exported policies and the visited-state sample, from a finished state."""
-    from metapg_jax.host import metric_rows, runfiles
-    from metapg_jax.host.policy import export_policies
-
-    from experiments import stats
-
-    rows = runfiles.read_jsonl(os.path.join(out, "metrics.jsonl"))
-    summary = stats.run_summary(*metric_rows.curves(rows))
-    summary.update({"method": cfg.run.method, "env": cfg.env.name, "preset": cfg.preset, "source": cfg.env.source,
-                    "physics": cfg.env.physics,
-                    **(extra or {})})
-    runfiles.write_json_atomic(os.path.join(out, "summary.json"), summary)
-    export_policies(os.path.join(out, "policy.npz"), cfg, state.student.actor, state.normalizer)
-    _save_visits(os.path.join(out, "visits.npz"), state.visits)
-    name = run_label(cfg)
-    if plot:
-        title = f"{name}, {cfg.preset} preset: {num_seeds} seeds"
-        metric_rows.plot_learning_curve(rows, os.path.join(out, "learning_curve.png"), title)
-        spec = cfg.explorer_spec
-        if spec.cycle_panels and spec.cycle_metrics:  # (cycles.jsonl is written for cycle metrics only)
-            from experiments.plots import plot_cycles
-
-            plot_cycles(runfiles.read_jsonl(os.path.join(out, "cycles.jsonl")), spec.cycle_panels,
-                        os.path.join(out, spec.plot_file), title)
-    for i, (v, last) in enumerate(zip(summary["final_return_per_seed"], summary["last_eval_return_per_seed"])):
-        print(f"seed {i}: final return {stats.fmt(v, 1)} (last evaluation {stats.fmt(last, 1)})")
-    line = f"{name}: {stats.describe_final(summary)}, {summary['env_steps']:,} env steps"
-    if "env_steps_per_second_total" in summary:
-        line += (f"; {summary['env_steps_per_second_total']:,.0f} env steps/s total, "
-                 f"compile {summary['compile_seconds']:.1f} s, peak RSS {summary['peak_rss_mib']:,.0f} MiB")
-    print(line)
-    return summary
-
-
-def _barrier(name: str) -> None:
-    """With several processes: waits until every process got here (a no-op with one)."""
-    import jax
-
-    if jax.process_count() > 1:
-        from jax.experimental import multihost_utils
-
-        multihost_utils.sync_global_devices(name)
-
-
-def _to_host(tree):
-    """Fetches (possibly multi-host sharded) arrays to NumPy on this host."""
-    import jax
-
-    if jax.process_count() > 1:
-        from jax.experimental import multihost_utils
-
-        return multihost_utils.process_allgather(tree, tiled=True)
-    return jax.device_get(tree)
 
 
 def _first_nonfinite(metrics, chunk: int, cfg: config_lib.Config):
@@ -670,17 +366,6 @@ def _first_nonfinite(metrics, chunk: int, cfg: config_lib.Config):
     seed_i = int(np.where(~finite[:, c])[0][0])
     step = (chunk * cfg.cycles_per_chunk + c + 1) * cfg.steps_per_cycle
     return seed_i, step
-
-
-def _save_visits(path: str, visits) -> None:
-    """The bounded sample of visited states per seed (for the state-visitation figure), atomically."""
-    import dataclasses
-
-    import numpy as np
-
-    from metapg_jax.host.runfiles import savez_atomic
-
-    savez_atomic(path, {f.name: np.asarray(getattr(visits, f.name)) for f in dataclasses.fields(visits)})
 
 
 if __name__ == "__main__":

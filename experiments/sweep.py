@@ -38,10 +38,11 @@ import sys
 import time
 
 import envs
-from experiments import run as run_lib
+from experiments.training import args as training_args
+from experiments.training import memory
 from metapg_jax.host import compile_cache, runner
 
-SWEEP_ARGS = ("env", "method", *run_lib.FLAGS, "student", "preset", "seeds", "seed", "steps", "source",
+SWEEP_ARGS = ("env", "method", *training_args.FLAGS, "student", "preset", "seeds", "seed", "steps", "source",
               "physics", "overrides", "plugins")
 
 
@@ -49,8 +50,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments.sweep",
                                 description="Run a grid of config settings x seeds as one compiled program per "
                                             "group of shape-compatible settings.")
-    for name in ("--env", "--method", *(f"--{flag}" for flag in run_lib.FLAGS), "--student", "--preset", "--source",
-                 "--physics"):
+    for name in ("--env", "--method", *(f"--{flag}" for flag in training_args.FLAGS), "--student", "--preset",
+                 "--source", "--physics"):
         p.add_argument(name, default=None, help=f"as experiments.run {name}")
     p.add_argument("--seeds", type=int, default=None, help="seeds per setting (default 8)")
     p.add_argument("--seed", type=int, default=None, help="base PRNG seed, as experiments.run (default 0)")
@@ -102,7 +103,7 @@ def plan(a: dict, grid: dict[str, list[str]]):
     from metapg_jax.config import to_dict
     from metapg_jax.sweep import get_field, set_fields, structural_fields
 
-    fixed = run_lib.parse_overrides(a["overrides"])
+    fixed = training_args.parse_overrides(a["overrides"])
     for field in grid:
         if field in fixed:
             raise ValueError(f"{field} is both swept (--grid) and fixed (--set)")
@@ -110,7 +111,7 @@ def plan(a: dict, grid: dict[str, list[str]]):
     configs = []
     for s in settings:
         try:
-            configs.append(run_lib.config_from_run_args(
+            configs.append(training_args.config_from_run_args(
                 {**a, "overrides": list(a["overrides"]) + [f"{k}={v}" for k, v in s.items()]}))
         except ValueError as err:
             raise ValueError(f"setting {', '.join(f'{k}={v}' for k, v in s.items())}: {err}") from None
@@ -150,15 +151,15 @@ def check_fits(a: dict, configs, groups, env) -> None:
         sweep = Sweep(cfg, env, tuple(group["batched"]))
         n = len(group["settings"]) * a["seeds"]
         values = jax.ShapeDtypeStruct((n, len(group["batched"])), jax.numpy.float32)
-        nbytes = run_lib.state_bytes(vmap_seeds(sweep.init), run_lib.abstract_keys(n), values)
+        nbytes = memory.state_bytes(vmap_seeds(sweep.init), memory.abstract_keys(n), values)
         if nbytes > largest:
             largest, label = nbytes, (f"group {g + 1} ({len(group['settings'])} settings x {a['seeds']} seeds, "
                                       f"replay buffers of {cfg.buffer_capacity:,})")
-    run_lib.check_fits(largest, f"the sweep's {label}")
+    memory.check_fits(largest, f"the sweep's {label}")
 
 
 def default_out(a: dict) -> str:
-    student = "" if a["student"] == run_lib.RUN_ARGS["student"] else f"-{a['student']}"
+    student = "" if a["student"] == training_args.RUN_ARGS["student"] else f"-{a['student']}"
     return os.path.join("runs", f"sweep-{a['env']}-{a['method']}{student}-s{a['seed']}")
 
 
@@ -173,7 +174,7 @@ def prepare(args) -> tuple[dict, dict, str]:
             raise ValueError(f"--resume {args.resume}: no sweep.json there (not a sweep folder)")
         stored = json.load(open(path))
         return stored["run_args"], stored["grid"], args.resume
-    a = run_lib.run_args(argparse.Namespace(**{k: getattr(args, k) for k in SWEEP_ARGS}))
+    a = training_args.run_args(argparse.Namespace(**{k: getattr(args, k) for k in SWEEP_ARGS}))
     # Stored resolved (never 'auto'), so a resume on another backend keeps the engine.
     a["physics"] = envs.resolve_physics(a["env"], a["source"], a["physics"])
     grid = parse_grid(args.grid)
@@ -213,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
                          for k, s in enumerate(settings)],
             "groups": groups, "config": to_dict(configs[0]), **provenance.record()})
     n = len(settings) * a["seeds"]
-    print(f"sweep of {len(settings)} settings x {a['seeds']} seeds = {n} runs of {run_lib.run_label(configs[0])} "
+    print(f"sweep of {len(settings)} settings x {a['seeds']} seeds = {n} runs of {training_args.run_label(configs[0])} "
           f"({configs[0].run.total_steps:,} env steps each) in {len(groups)} program(s); output {out}", flush=True)
     for g, group in enumerate(groups):
         status = run_group(out, g, group, settings, configs, env, a, args,
@@ -310,11 +311,11 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
 
 
 def summary_rows(out: str, settings, configs) -> list[dict]:
-    """Per setting: final return (experiments.stats: mean of each seed's last 10% of evaluations) mean ±
+    """Per setting: final return (experiments.build.stats: mean of each seed's last 10% of evaluations) mean ±
     std over seeds and the 95% t interval; a setting with non-finite parameters is flagged."""
     import numpy as np
 
-    from experiments.stats import final_returns, mean_std, t_interval
+    from experiments.build.stats import final_returns, mean_std, t_interval
     from metapg_jax.host import runfiles
 
     rows = runfiles.read_jsonl(os.path.join(out, "metrics.jsonl"))
@@ -344,7 +345,7 @@ def summary_rows(out: str, settings, configs) -> list[dict]:
 
 
 def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
-    from experiments.stats import FINAL_DEFINITION, fmt
+    from experiments.build.stats import FINAL_DEFINITION, fmt
     from metapg_jax.host import runfiles
 
     rows = summary_rows(out, settings, configs)
@@ -375,7 +376,7 @@ def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
 
 
 def _plot(out: str, rows: list[dict], fields: list[str]) -> None:
-    from experiments.figures import pyplot
+    from experiments.build.figures import pyplot
 
     plt = pyplot()
     shown = [e for e in rows if "mean" in e]

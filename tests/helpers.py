@@ -25,11 +25,11 @@ def isolated_registry(monkeypatch) -> None:
 
 def gymnasium_make(gym_id: str):
     """``gymnasium.make(gym_id)``, the tests' reference, without MuJoCo's settotalmass deprecation warning
-    landing in the working directory as MUJOCO_LOG.TXT (envs.gym_mujoco.without_the_settotalmass_warning;
+    landing in the working directory as MUJOCO_LOG.TXT (envs.mujoco_base.without_the_settotalmass_warning;
     the model is gymnasium's own, unchanged)."""
     import gymnasium
 
-    from envs.gym_mujoco import without_the_settotalmass_warning
+    from envs.mujoco_base import without_the_settotalmass_warning
 
     with without_the_settotalmass_warning():
         return gymnasium.make(gym_id)

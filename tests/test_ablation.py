@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from experiments import ablation, cells
+from experiments import ablation
+from experiments.build import cells
 from tests.helpers import fabricate_run
 
 STEPS = np.arange(1, 21) * 1000  # 20 evaluations

@@ -28,7 +28,8 @@ import shutil
 
 import pytest
 
-from experiments import artefacts, cells
+from experiments import artefacts
+from experiments.build import cells
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # committed folder -> (build_all's results_dir, preset) of the build that wrote it

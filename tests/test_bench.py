@@ -5,15 +5,16 @@ import json
 import pytest
 
 from experiments import bench
+from experiments.benchmarks import engines, env_speed, records, training
 
 
 def test_write_section_replaces_only_its_block(tmp_path):
     path = str(tmp_path / "B.md")
-    bench.write_section(path, "training", "table v1")
-    bench.write_section(path, "env-speed", "env v1")
+    records.write_section(path, "training", "table v1")
+    records.write_section(path, "env-speed", "env v1")
     with open(path, "a") as f:
         f.write("\n## Hand-written analysis\n\nkeep me\n")
-    bench.write_section(path, "training", "table v2")
+    records.write_section(path, "training", "table v2")
     text = open(path).read()
     assert "table v2" in text and "table v1" not in text
     assert "env v1" in text and "keep me" in text
@@ -26,7 +27,7 @@ def test_seed_scaling_within_one_date_and_variant():
     rows = [row(1, 100.0, measured="2026-11-25"), row(8, 300.0, measured="2026-11-25"),
             row(8, 900.0),  # undated (first run): no 1-seed row of its own date
             row(1, 50.0, measured="2026-11-25", plain_vmap=True), row(8, 200.0, measured="2026-11-25", plain_vmap=True)]
-    scaling = bench.seed_scaling(rows)
+    scaling = training.seed_scaling(rows)
     assert scaling[id(rows[1])] == 3.0 and scaling[id(rows[4])] == 4.0
     assert id(rows[2]) not in scaling
 
@@ -45,7 +46,7 @@ def test_env_speed_markdown_has_both_engines_the_limits_and_the_verdicts():
             "c_over_raw_loop": 12000 / 13000, "batch_steps_per_s": 20000.0, "c_compile_s": 1.5,
             "gymnasium_steps_per_s": 8300.0, "stock_steps_per_s": 5000.0, "early_exit_speedup": 2.0,
             "identical_to_stock": False}]
-    md = bench.env_speed_markdown(res, meta)
+    md = env_speed.env_speed_markdown(res, meta)
     assert "| hopper | 2,000 | 12,000 | 6.00x | 13,000 | 0.92x | 20,000 | 267 | 9,000 | 8,000 | yes | 8,300 | 30.0 / 1.5 |" in md
     # IDP misses its 1.5x-over-MJX target
     assert "| inverted_double_pendulum | 10,000 | 12,000 | 1.20x | 13,000 | 0.92x | 20,000 | – | 9,000 | 8,000 | NO |" in md
@@ -60,11 +61,11 @@ def test_engines_table_pairs_rows_of_one_date():
         "steps_per_s_total": sps, "compile_s": 20.0 if physics == "mujoco" else 400.0, "full_s": 10.0,
         "updates_s": 4.0, **kw}
     rows = [row("mjx", 500.0), row("mujoco", 3000.0), row("mujoco", 2500.0, date="2026-12-02")]
-    md = "\n".join(bench.engines_markdown(rows))
+    md = "\n".join(engines.engines_markdown(rows))
     assert "| hopper | meta | paper | 8 | 2026-12-01 | 500 | 3,000 | 6.00x | 0.40 | 400.0 / 20.0 |" in md
     assert "| hopper | meta | paper | 8 | 2026-12-02 | – | 2,500 | – | 0.40 | – / 20.0 |" in md
-    assert bench.engines_markdown([row("mjx", 500.0)]) == []
-    assert bench._variant(row("mujoco", 1.0)) == " (MuJoCo C)"
+    assert engines.engines_markdown([row("mjx", 500.0)]) == []
+    assert records._variant(row("mujoco", 1.0)) == " (MuJoCo C)"
 
 
 def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
@@ -95,13 +96,13 @@ def test_replay_benchmark_refuses_sizes_it_cannot_time(capsys):
 
 
 def test_replay_benchmark_records_rows_and_replaces_same_day_ones(tmp_path):
-    from experiments import bench_replay
+    from experiments.benchmarks import replay
 
     path = str(tmp_path / "replay.json")
     row = lambda buffer, capacity, ms, day="2026-12-01": {"buffer": buffer, "seeds": 8, "capacity": capacity,
                                                          "measured": day, "ms_per_cycle": ms}
-    bench_replay.record(path, [row("ring", 100_000, 1.0), row("ring", 100_000, 3.0, "2026-11-23")])
-    bench_replay.record(path, [row("ring", 100_000, 2.0), row("flashbax", 100_000, 5.0)])
+    replay.record(path, [row("ring", 100_000, 1.0), row("ring", 100_000, 3.0, "2026-11-23")])
+    replay.record(path, [row("ring", 100_000, 2.0), row("flashbax", 100_000, 5.0)])
     with open(path) as f:
         rows = json.load(f)["rows"]
     assert sorted((r["buffer"], r["measured"], r["ms_per_cycle"]) for r in rows) == [

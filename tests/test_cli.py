@@ -10,6 +10,8 @@ import sys
 import pytest
 
 from experiments import run
+from experiments.training import args as training_args
+from experiments.training.finish import record_extension
 from tests.helpers import TINY_BUFFER, TINY_RUN
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -105,12 +107,12 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     assert len(rows) == 2 * 2 and {r["seed"] for r in rows} == {0, 1}
     assert rows[-1]["env_steps"] == 600
     summary = json.loads((out / "summary.json").read_text())
-    from experiments import stats
+    from experiments.build import stats
     from metapg_jax.host import metric_rows
 
     train_s, exact = metric_rows.training_seconds(rows)
     assert exact and all(r["chunk_seconds"] > 0 for r in rows) and 0 < train_s <= summary["train_seconds"]
-    # summary.json's final return is the tables' (experiments.stats) on the same metrics file.
+    # summary.json's final return is the tables' (experiments.build.stats) on the same metrics file.
     finals = stats.final_returns(metric_rows.curves(rows)[1])
     assert summary["final_return_per_seed"] == pytest.approx(finals.tolist())
     assert (summary["final_return_mean"], summary["final_return_std"]) == pytest.approx(stats.mean_std(finals))
@@ -127,8 +129,8 @@ def _stored_run(out, argv):
     """A run folder as `prepare` sees one with a checkpoint: config.json and checkpoints/1 (an empty
     stand-in for orbax's step folder; nothing here restores it)."""
     args = run.build_parser().parse_args(argv)
-    a = run.run_args(args)
-    cfg = run.config_from_run_args(a)
+    a = training_args.run_args(args)
+    cfg = training_args.config_from_run_args(a)
     os.makedirs(os.path.join(out, "checkpoints", "1"))
     with open(os.path.join(out, "config.json"), "w") as f:
         json.dump({"run_args": a, "config": run.config_lib.to_dict(cfg)}, f)
@@ -139,7 +141,7 @@ def test_an_extension_keeps_a_budget_derived_evaluation_interval(tmp_path, capsy
     """Where the default interval follows the budget (here under ten task intervals), extending keeps the stored one."""
     out = str(tmp_path / "run")
     short = _stored_run(out, ["--env=pendulum", "--method=meta", "--steps=3000", "--out", out])
-    longer = run.config_from_run_args({**run.RUN_ARGS, "env": "pendulum", "method": "meta", "steps": 9000})
+    longer = training_args.config_from_run_args({**training_args.RUN_ARGS, "env": "pendulum", "method": "meta", "steps": 9000})
     assert longer.run.eval_every != short.run.eval_every        # else this test checks nothing
     cfg, a, _, resume, extend_from = run.prepare(run.build_parser().parse_args(["--resume", out, "--steps=9000"]))
     assert resume and extend_from == 3000
@@ -149,7 +151,7 @@ def test_an_extension_keeps_a_budget_derived_evaluation_interval(tmp_path, capsy
     assert run.main(["--resume", out, "--steps=9000", "--set", f"run.eval_every={longer.run.eval_every}"]) == 2
     assert "would also change: run.eval_every" in capsys.readouterr().err
     # As `experiments.run` records it before training: a later plain --resume continues the extension.
-    run._record_extension(out, cfg, a, 3000)
+    record_extension(out, cfg, a, 3000)
     cfg2, a2, _, _, extend_from = run.prepare(run.build_parser().parse_args(["--resume", out]))
     assert extend_from is None and cfg2 == cfg and a2["overrides"] == a["overrides"]
     # A budget the stored interval does not divide is refused with the reason.
@@ -157,35 +159,6 @@ def test_an_extension_keeps_a_budget_derived_evaluation_interval(tmp_path, capsy
     assert _stored_run(other, ["--env=pendulum", "--method=meta", "--steps=6000", "--out", other]).run.eval_every == 600
     assert run.main(["--resume", other, "--steps=9900"]) == 2
     assert "evaluation interval, 600 env steps, does not divide --steps=9,900" in capsys.readouterr().err
-
-
-def test_distributed_initialisation_reads_the_coordinator_variables(monkeypatch, capsys):
-    import jax
-
-    calls = []
-    monkeypatch.setattr(jax.distributed, "initialize", lambda **kw: calls.append(kw))
-    monkeypatch.setattr(jax.distributed, "is_initialized", lambda: False)
-    for var in ("JAX_COORDINATOR_ADDRESS", "JAX_NUM_PROCESSES", "JAX_PROCESS_ID"):
-        monkeypatch.delenv(var, raising=False)
-    run._maybe_initialize_distributed()
-    assert calls == []                                   # one process: nothing to initialise
-    monkeypatch.setenv("JAX_COORDINATOR_ADDRESS", "10.0.0.1:1234")
-    run._maybe_initialize_distributed()                  # SLURM / Open MPI: JAX reads the rest itself
-    monkeypatch.setenv("JAX_NUM_PROCESSES", "4")
-    monkeypatch.setenv("JAX_PROCESS_ID", "2")
-    run._maybe_initialize_distributed()
-    assert calls == [{}, {"num_processes": 4, "process_id": 2}]
-    monkeypatch.setenv("JAX_PROCESS_ID", "two")
-    with pytest.raises(ValueError, match="JAX_PROCESS_ID must be a non-negative integer"):
-        run._maybe_initialize_distributed()
-    assert run.main(["--env=pendulum", "--steps=300"]) == 2  # one error line, before anything compiles
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["error: JAX_PROCESS_ID must be a non-negative integer, got 'two'"]
-    # Initialised already (reproduce runs every cell in one process): not again.
-    monkeypatch.setattr(jax.distributed, "is_initialized", lambda: True)
-    monkeypatch.setenv("JAX_PROCESS_ID", "2")
-    run._maybe_initialize_distributed()
-    assert len(calls) == 2
 
 
 def test_a_run_too_large_for_memory_is_refused_before_compiling(tmp_path, capsys):

@@ -26,13 +26,9 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from envs.gym_mujoco import (
-    _mjx_solver,
-    BRAX_TASKS,
-    GYMNASIUM_TASKS,
-    Hopper,
-    state_from_qpos_qvel,
-)
+from envs.brax_mujoco import BRAX_TASKS
+from envs.gym_mujoco import GYMNASIUM_TASKS, Hopper
+from envs.mujoco_base import _mjx_solver, state_from_qpos_qvel
 from tests.helpers import gymnasium_make
 
 # name -> (steps to scan, cross-check tolerance, rollout A must terminate)
@@ -331,12 +327,12 @@ def test_brax_tasks_build_and_step(tmp_path, monkeypatch):
 
 
 def test_halfcheetah_model_loads_without_the_settotalmass_warning(tmp_path, monkeypatch):
-    """envs.gym_mujoco.load_model compiles HalfCheetah's XML without its deprecated ``settotalmass``
+    """envs.mujoco_base.load_model compiles HalfCheetah's XML without its deprecated ``settotalmass``
     attribute (mj_setTotalmass + mj_setConst instead): every array of the model equals the one compiled
     from the file as it is, and nothing lands in the working directory (MuJoCo's MUJOCO_LOG.TXT)."""
     import mujoco
 
-    from envs.gym_mujoco import gymnasium_asset_path, load_model
+    from envs.mujoco_base import gymnasium_asset_path, load_model
 
     path = gymnasium_asset_path("half_cheetah.xml")
     assert 'settotalmass="14"' in open(path).read()  # the case load_model handles is still there

@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 
 from experiments import run
+from experiments.training.args import config_from_run_args
+from experiments.training.finish import record_extension
 from metapg_jax import load_policy
 from metapg_jax.host.checkpoint import Checkpointer
 from tests import xla_flags
@@ -149,8 +151,8 @@ def test_an_interrupted_extension_resumes_from_the_smaller_checkpoint(growing_re
     assert run.main(GROWING + ["--steps=600", "--out", out]) == 0
     cfg_path = os.path.join(out, "config.json")
     stored = json.load(open(cfg_path))
-    cfg = run.config_from_run_args({**stored["run_args"], "steps": 900})
-    run._record_extension(out, cfg, {**stored["run_args"], "steps": 900}, 600)  # as if killed right after
+    cfg = config_from_run_args({**stored["run_args"], "steps": 900})
+    record_extension(out, cfg, {**stored["run_args"], "steps": 900}, 600)  # as if killed right after
     assert not os.path.exists(os.path.join(out, "summary.json"))
     assert run.main(["--resume", out, "--quiet", "--no-plot"]) == 0
     assert_same_run(reference, out)

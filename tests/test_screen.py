@@ -8,8 +8,11 @@ import shutil
 
 import pytest
 
-from experiments import ablation, cells, screen
-from experiments.run import build_parser, config_from_run_args, run_args
+from experiments import ablation, screen
+from experiments.build import cells
+from experiments.run import build_parser
+from experiments.training import screen_variants
+from experiments.training.args import config_from_run_args, run_args
 from metapg_jax.config import to_dict
 
 # tests/test_reproduce.py's TINY settings (its cells of the same method share these cells' programs).
@@ -38,7 +41,7 @@ def test_each_variant_changes_the_config_it_names_and_nothing_else(task):
     assert changed[screen.CONTROL] == {}
     assert set(changed["normalised-reward"]) == {"meta.normalize_meta_reward"}
     assert set(changed["student-from-lookahead"]) == {"meta.student_from"}
-    assert changed["log-std-floor"] == {"meta.min_log_std": (screen.LOG_STD_FLOOR, -5.0)}
+    assert changed["log-std-floor"] == {"meta.min_log_std": (screen_variants.LOG_STD_FLOOR, -5.0)}
     assert changed["fresh-baseline"] == {"meta.baseline": ("fresh", "lookahead")}
     assert changed["two-d1-envs"] == {"meta.eval_envs": (2, 1)}
     # DDPG's 50 updates per 100 stored steps: half the Meta cycle, with the look-ahead's updates kept.

@@ -1,4 +1,4 @@
-"""experiments.stats: the aggregate scores over tasks (IQM, optimality gap, probability of improvement,
+"""experiments.build.stats: final returns, t intervals and Welch tests against formulas written out here; the aggregate scores over tasks (IQM, optimality gap, probability of improvement,
 performance profiles, stratified bootstrap intervals), Holm's correction and the equivalence test.
 
 The aggregate numbers are checked against `rliable` 1.2.0 (Agarwal et al.'s package; it needs pandas < 3, so it
@@ -21,7 +21,9 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from experiments import stats
+from experiments.build import stats
+from experiments.build.stats import (final_returns, first_step_reaching, mean_std, num_final_evaluations, t_interval,
+                                     welch_difference, welch_test)
 
 X = np.array([[0.10, 0.55, 1.20], [0.35, 0.55, 0.90], [0.80, 0.20, 1.05], [0.05, 0.70, 0.40], [0.60, 0.95, 1.30]])
 Y = np.array([[0.20, 0.55, 0.80], [0.30, 0.10, 0.85], [0.15, 0.40, 1.10], [0.45, 0.25, 0.60], [0.05, 0.50, 0.95]])
@@ -144,3 +146,58 @@ def test_a_family_is_judged_with_holm_on_both_tests():
     assert stats.judge_family([(a, base, None)])[0]["verdict"] == "better"
     null = (base, base + 0.0, None)
     assert stats.judge_family([(a, base, None), null, null])[0]["verdict"] == "inconclusive"
+
+
+def test_final_returns_use_the_last_tenth_at_least_one():
+    assert [num_final_evaluations(t) for t in (1, 5, 9, 10, 19, 20, 100, 167)] == [1, 1, 1, 1, 1, 2, 10, 16]
+    values = np.arange(2 * 20, dtype=float).reshape(2, 20)
+    np.testing.assert_allclose(final_returns(values), [(18 + 19) / 2, (38 + 39) / 2])
+    np.testing.assert_allclose(final_returns(values[:, :3]), [2, 22])
+
+
+def test_run_summary_is_the_tables_final_return_with_the_last_evaluation_apart():
+    """summary.json's numbers (experiments.build.stats.run_summary): the mean of each seed's last 10% of
+    evaluations, mean ± sample std over seeds; the last evaluation alone under its own name."""
+    from experiments.build.stats import describe_final, run_summary
+
+    values = np.arange(2 * 20, dtype=float).reshape(2, 20)  # finals 18.5 and 38.5
+    s = run_summary(np.arange(1, 21) * 100, values)
+    assert s["env_steps"] == 2000 and s["num_seeds"] == 2 and s["final_return_evaluations"] == 2
+    assert s["final_return_per_seed"] == [18.5, 38.5] and s["final_return_mean"] == 28.5
+    assert s["final_return_std"] == pytest.approx(np.sqrt(2 * 10.0 ** 2))  # sample std of 18.5, 38.5
+    assert s["last_eval_return_per_seed"] == [19.0, 39.0] and s["last_eval_return_mean"] == 29.0
+    assert describe_final(s) == ("final return 28.5 ± 14.1 (mean of the last 2 evaluations per seed; mean ± "
+                                 "sample std over 2 seeds)")
+    values[1, -1] = np.nan  # a seed without a finite last evaluation: None in JSON, not NaN
+    assert run_summary(np.arange(1, 21), values)["last_eval_return_per_seed"] == [19.0, None]
+
+
+def test_mean_std_t_interval_and_welch_match_the_formulas():
+    a = np.array([1.0, 2.5, 4.0, 3.5])
+    b = np.array([0.5, 1.0, 0.0])
+    mean, std = mean_std(a)
+    assert mean == pytest.approx(a.sum() / 4)
+    assert std == pytest.approx(math.sqrt(((a - a.mean()) ** 2).sum() / 3))
+    _, half = t_interval(a)
+    assert half == pytest.approx(sps.t.ppf(0.975, 3) * std / math.sqrt(4))
+    # Welch: t = (ma - mb) / sqrt(va/na + vb/nb), Welch-Satterthwaite df, two-sided p.
+    va, vb = a.var(ddof=1) / 4, b.var(ddof=1) / 3
+    t = (a.mean() - b.mean()) / math.sqrt(va + vb)
+    df = (va + vb) ** 2 / (va ** 2 / 3 + vb ** 2 / 2)
+    got_t, got_p = welch_test(a, b)
+    assert got_t == pytest.approx(t) and got_p == pytest.approx(2 * sps.t.sf(abs(t), df))
+    assert all(math.isnan(v) for v in welch_test(a, b[:1]))
+    # The difference's Welch interval: t(0.975, df) * sqrt(va/na + vb/nb), scipy's own interval too.
+    diff, half = welch_difference(a, b)
+    assert diff == pytest.approx(a.mean() - b.mean())
+    assert half == pytest.approx(sps.t.ppf(0.975, df) * math.sqrt(va + vb))
+    ci = sps.ttest_ind(a, b, equal_var=False).confidence_interval(0.95)
+    assert (diff - half, diff + half) == pytest.approx((ci.low, ci.high))
+    assert math.isnan(welch_difference(a, b[:1])[1])
+    assert math.isnan(t_interval([3.0])[1]) and math.isnan(mean_std([3.0])[1])
+
+
+def test_first_step_reaching():
+    steps = np.array([100, 200, 300, 400])
+    assert first_step_reaching(steps, np.array([0.0, np.nan, 5.0, 7.0]), 5.0) == 300
+    assert first_step_reaching(steps, np.array([0.0, 1.0, 2.0, 3.0]), 5.0) is None

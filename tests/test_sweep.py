@@ -11,6 +11,7 @@ import pytest
 
 import envs
 from experiments import run, sweep
+from experiments.training.args import RUN_ARGS
 from metapg_jax.host import runfiles
 from metapg_jax.sweep import structural_fields
 from tests.helpers import tiny_argv, tiny_config
@@ -62,7 +63,7 @@ def test_fields_that_change_the_program_are_found_and_split_into_programs(tmp_pa
               "meta.teacher_steps", "run.train_steps", "meta.normalize_meta_reward"]
     assert structural_fields(cfg, env, fields) == ["ddpg.hidden", "meta.teacher", "meta.teacher_steps",
                                                    "run.train_steps", "meta.normalize_meta_reward"]
-    a = {**run.RUN_ARGS, "seeds": 2, "steps": 600, "overrides": TINY[TINY.index("--set"):-1][1::2]}
+    a = {**RUN_ARGS, "seeds": 2, "steps": 600, "overrides": TINY[TINY.index("--set"):-1][1::2]}
     settings, configs, groups, _ = sweep.plan(a, {"meta.lr": ["1e-4", "1e-3"], "meta.teacher": ["independent", "variance"]})
     assert len(settings) == 4
     assert [(g["settings"], g["batched"], g["fixed"]) for g in groups] == [

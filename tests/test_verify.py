@@ -6,7 +6,8 @@ import os
 import subprocess
 import sys
 
-from experiments import cells, verify
+from experiments import verify
+from experiments.build import cells
 from tests.helpers import TINY_BUFFER, TINY_RUN
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -14,14 +14,14 @@ from typing import Iterable
 
 import numpy as np
 
-from experiments.grid import BASELINE, META, METHODS, TASKS
-from experiments.stats import final_returns
+from experiments.build.grid import BASELINE, META, METHODS, TASKS
+from experiments.build.stats import final_returns
 from metapg_jax.host import metric_rows, provenance, runfiles
 
 # ---------------------------------------------------------------------------------------------- loading
 
 # Per-chunk metrics about the data the explorer put in the buffer, kept next to the evaluation curves
-# where a run logged them (tables.behaviour_rows): the return of the exploration episodes (DDPG's noisy
+# where a run logged them (behaviour.behaviour_rows): the return of the exploration episodes (DDPG's noisy
 # or perturbed student; Meta's teacher collecting D0) and, for a teacher, its log-std, its distance to
 # the student's action on D0 and the meta reward.
 BEHAVIOUR_METRICS = ("train_return", "teacher_log_std", "teacher_student_distance", "meta_reward")

@@ -1,8 +1,8 @@
 """The paper's task x method grid: task and method names, each method's ``experiments.run`` options,
 and the DDPG baseline each preset's Meta is compared against.
 
-Shared by everything that runs or reads the grid (``experiments.reproduce``, ``experiments.cells``,
-``experiments.tables``, ``experiments.figures``, ``experiments.artefacts``).
+Shared by everything that runs or reads the grid (``experiments.reproduce``, ``experiments.build.cells``,
+``experiments.build.tables``, ``experiments.build.figures``, ``experiments.artefacts``).
 """
 
 from __future__ import annotations

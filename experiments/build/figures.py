@@ -1,4 +1,4 @@
-"""The figures of the artefacts, from stored cells (``experiments.cells``): learning curves per task
+"""The figures of the artefacts, from stored cells (``experiments.build.cells``): learning curves per task
 (``curves_<task>.png``, Figure 3), teacher designs (``teacher_designs_idp.png``, Figure 2) and state
 visitation jointly embedded in 2-D (``visitation_<task>.png``, Figure 4; t-SNE or PCA); and the
 matplotlib helpers other reports use (``pyplot``, ``save_figure``).
@@ -11,7 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
-from experiments.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, TASKS, baseline_for, grid_label
+from experiments.build.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, TASKS, baseline_for, grid_label
 
 # Line colour of each grid method in every figure.
 METHOD_COLORS = {"meta-independent": "tab:red", "meta-variance": "tab:orange",

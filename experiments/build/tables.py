@@ -1,8 +1,8 @@
-"""The tables of the artefacts, from stored cells (``experiments.cells``): the paper's Table 2
+"""The tables of the artefacts, from stored cells (``experiments.build.cells``): the paper's Table 2
 (``table2.md`` / ``.json`` / ``_per_seed.csv``), samples to reach the DDPG baseline's best
-(``steps_to_threshold.csv`` / ``.md``), every method against every other (``comparisons.md`` / ``.json``),
-what the explorer put in the buffer (``behaviour.md`` / ``.json``) and the results folder's ``README.md``;
-the paper's Table 2 numbers they are shown next to.
+(``steps_to_threshold.csv`` / ``.md``) and every method against every other (``comparisons.md`` / ``.json``);
+the paper's Table 2 numbers they are shown next to. What the explorers put in the buffer is
+``experiments.build.behaviour``'s, the folder's ``README.md`` ``experiments.build.readme``'s.
 """
 
 from __future__ import annotations
@@ -11,17 +11,16 @@ import csv
 import json
 import math
 import os
-import warnings
 from typing import Iterable, Sequence
 
 import numpy as np
 
-from experiments.cells import BEHAVIOUR_METRICS, RunResult, cell_provenance
-from experiments.grid import (BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for, grid_label, noise_methods,
-                             STUDENT_NAMES)
-from experiments.stats import (EQUIVALENCE_MARGIN, FINAL_DEFINITION, VERDICT_DEFINITION, final_returns,
-                               first_step_reaching, fmt, fmt_p, judge_family, mean_std, num_final_evaluations,
-                               stats_definition, t_interval, welch_test)
+from experiments.build.cells import RunResult, cell_provenance
+from experiments.build.grid import (BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for, grid_label, noise_methods,
+                                    STUDENT_NAMES)
+from experiments.build.stats import (EQUIVALENCE_MARGIN, FINAL_DEFINITION, VERDICT_DEFINITION,
+                                     first_step_reaching, fmt, fmt_p, judge_family, mean_std, num_final_evaluations,
+                                     stats_definition, t_interval, welch_test)
 
 # The paper's Table 2 (Xu et al., 2018): final return mean ± std, Meta vs DDPG; 3 seeds, gym v1 tasks.
 PAPER_TABLE2 = {
@@ -35,7 +34,7 @@ PAPER_TABLE2 = {
 PAPER_SEEDS = 3
 
 
-def _write_md_and_json(md_path: str, md: list[str], json_path: str, preset: str, student: str, payload: dict) -> None:
+def write_md_and_json(md_path: str, md: list[str], json_path: str, preset: str, student: str, payload: dict) -> None:
     """An artefact's Markdown lines and its JSON twin, which opens with the grid (preset; student if not DDPG)."""
     with open(md_path, "w") as f:
         f.write("\n".join(md))
@@ -86,7 +85,7 @@ def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str], bas
 def verdict_families(rows: list[dict], methods: Sequence[str], baseline: str,
                      anchors: dict[str, tuple[float, float]] | None = None) -> list[dict]:
     """The grid's corrected verdicts (``stats.judge_family``), one family per noise baseline: the grid's own
-    ``baseline`` first (fixed in advance by the grid, ``experiments.grid.baseline_for``), then every other noise
+    ``baseline`` first (fixed in advance by the grid, ``experiments.build.grid.baseline_for``), then every other noise
     baseline of ``methods``, so that no baseline is picked on the seeds it is judged on. A family holds every
     teacher (a method that does not explore with noise; every other method in a grid without one) against
     that baseline on every task where both cells finished at the same budget (cells of different budgets are
@@ -144,7 +143,7 @@ def verdicts_markdown(families: list[dict]) -> list[str]:
     return md
 
 
-def _cell_text(cell: dict) -> str:
+def cell_text(cell: dict) -> str:
     if cell["status"] == "not run":
         return "not run"
     if cell["status"] == "incomplete":
@@ -214,7 +213,7 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
           "| task | " + " | ".join(names) + " | paper Meta | paper DDPG | budget (env steps / seed) | seeds run |",
           "|---|" + "---|" * len(names) + "---|---|---|---|"]
     for row in rows:
-        cells = [_cell_text(row["methods"][m]) for m in methods]
+        cells = [cell_text(row["methods"][m]) for m in methods]
         paper = row["paper"]
         pm = f"{paper['meta'][0]:,g} ± {paper['meta'][1]:,g}" if paper else "—"  # as printed in the paper
         pd = f"{paper['ddpg'][0]:,g} ± {paper['ddpg'][1]:,g}" if paper else "—"
@@ -230,7 +229,7 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     md += [""] + verdicts_markdown(families)
     md.append(footer)
     paths = [os.path.join(out_dir, n) for n in ("table2.md", "table2.json", "table2_per_seed.csv")]
-    _write_md_and_json(paths[0], md, paths[1], preset, student,
+    write_md_and_json(paths[0], md, paths[1], preset, student,
                        {"baseline": baseline, "final_definition": FINAL_DEFINITION,
                         "statistics": stats_definition(baseline), "verdicts_definition": VERDICT_DEFINITION,
                         "paper_seeds": PAPER_SEEDS, "rows": rows, "verdicts": families})
@@ -391,278 +390,9 @@ def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
     if not comparisons["methods"]:
         md += ["", "(no finished cell is stored)"]
     md.append(footer)
-    _write_md_and_json(paths[0], md, paths[1], preset, student,
+    write_md_and_json(paths[0], md, paths[1], preset, student,
                        {"final_definition": FINAL_DEFINITION, "build_commit": build_commit, **comparisons})
     return paths
 
 
 # ---------------------------------------------------------------------------------------------- behaviour
-
-BEHAVIOUR_COLUMNS = tuple(zip(BEHAVIOUR_METRICS, ("exploration-episode return", "teacher log-std",
-                                                  "teacher-student distance", "meta reward")))
-
-
-def _seed_mean_first_final(values: np.ndarray) -> dict:
-    """A behaviour metric's (seeds, T) chunks: the seed mean of the first chunk, and the seeds' mean and std
-    of the final window (the final return's: the last max(1, floor(T/10)) chunks); NaN (a chunk where no
-    exploration episode ended) is left out of every mean."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN column is reported as n/a
-        final = final_returns(values)
-        final = final[np.isfinite(final)]
-        mean, std = mean_std(final)
-        return {"first": float(np.nanmean(values[:, 0])), "final_mean": mean, "final_std": std,
-                "final_seeds": int(final.size)}
-
-
-def behaviour_rows(results: dict, tasks: Sequence[str], methods: Sequence[str]) -> list[dict]:
-    """What the explorer put in the buffer, per finished cell that logged it (``cells.BEHAVIOUR_METRICS``):
-    the return of the exploration episodes (DDPG: the noisy or perturbed student; Meta: the teacher's D0)
-    and, for a teacher, its log-std, its RMS distance to the student's action on D0 and the meta reward,
-    each at the first chunk and over the final window (``_seed_mean_first_final``); the final evaluation
-    return of the same cell for reference."""
-    rows = []
-    for task in tasks:
-        for m in methods:
-            r = results.get((task, m))
-            if r is None or not r.complete or not r.behaviour:
-                continue
-            rows.append({"task": task, "method": m, "n": r.num_seeds, "budget": r.budget,
-                         "eval_final": float(r.final().mean()),
-                         **{k: _seed_mean_first_final(r.behaviour[k]) for k, _ in BEHAVIOUR_COLUMNS
-                            if k in r.behaviour}})
-    return rows
-
-
-def write_behaviour(rows: list[dict], out_dir: str, footer: str, preset: str, build_commit: str | None = None,
-                    student: str = "ddpg") -> list[str]:
-    """behaviour.md and behaviour.json from ``behaviour_rows``; returns the paths."""
-    paths = [os.path.join(out_dir, "behaviour.md"), os.path.join(out_dir, "behaviour.json")]
-    md = [f"# What the explorer put in the buffer ({grid_label(preset, student)})", "",
-          "From the per-chunk training metrics of the finished cells (`metrics.jsonl`), next to the final "
-          "evaluation return:", "",
-          "- exploration-episode return: the mean return of the episodes that ended during a chunk's exploration "
-          "rollouts: DDPG's student with its noise (Gaussian, OU) or perturbed weights (param noise); Meta's "
-          "teacher collecting D0 (D1, the student's deterministic rollouts that also go to the buffer, is not "
-          "counted). Chunks in which no episode ended are left out.",
-          "- teacher log-std: the mean over D0's states and action dimensions; teacher-student distance: the RMS "
-          "difference between the teacher's action and the student's deterministic action on D0's states "
-          "(actions in [-1, 1]); meta reward: R_hat(pi') - R_hat(pi) (Algorithm 1).",
-          "- first: the seed mean of the first chunk (the first evaluation interval); final: mean ± std over "
-          "seeds of each seed's mean over the final return's window (the last max(1, floor(T/10)) chunks)."]
-    for task in dict.fromkeys(r["task"] for r in rows):
-        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
-               "| method | seeds | final evaluation return | " +
-               " | ".join(f"{label}, first | {label}, final" for _, label in BEHAVIOUR_COLUMNS) + " |",
-               "|---|---|---|" + "---|---|" * len(BEHAVIOUR_COLUMNS)]
-        for r in (r for r in rows if r["task"] == task):
-            cols = []
-            for k, _ in BEHAVIOUR_COLUMNS:
-                v = r.get(k)
-                cols += ["–", "–"] if v is None else [fmt(v["first"]), f"{fmt(v['final_mean'])} ± {fmt(v['final_std'])}"]
-            md.append(f"| {METHOD_NAMES.get(r['method'], r['method'])} | {r['n']} | {fmt(r['eval_final'])} | "
-                      + " | ".join(cols) + " |")
-    if not rows:
-        md += ["", "(no finished cell logged its exploration metrics)"]
-    md.append(footer)
-    _write_md_and_json(paths[0], md, paths[1], preset, student, {"build_commit": build_commit, "rows": rows})
-    return paths
-
-
-# ---------------------------------------------------------------------------------------------- coverage
-
-COVERAGE_GROUPS = (("teacher", "teacher (Meta's D0)"), ("student", "student (Meta's D1)"), ("ddpg", "noise baseline"))
-
-
-def coverage_rows(results: dict, tasks: Sequence[str], baseline: str = BASELINE) -> dict:
-    """State coverage as numbers (``stats.COVERAGE_DEFINITION``) for every task whose Meta (independent) and
-    ``baseline`` cells stored ``visits.npz`` (the states of Figure 4): per group (teacher, student, the
-    baseline; early and late) the occupied cells, the k-NN spread and the distance to the student's states,
-    each a mean over seeds with its bootstrap interval; and per task and phase the comparisons Figure 4 is
-    read for: teacher − baseline (occupied cells, spread; independent seeds) and the teacher's distance to
-    the student's states − the student's own (paired by seed: the same runs). ``{"rows": [...],
-    "comparisons": [...]}``."""
-    from sklearn.decomposition import PCA
-
-    from experiments import figures
-    from experiments.cells import thin_visits
-    from experiments.stats import (COVERAGE_K, bootstrap_difference, bootstrap_mean, knn_distance,
-                                   nearest_distance, occupied_fraction)
-
-    out = {"rows": [], "comparisons": []}
-    for task in tasks:
-        a, b = results.get((task, META)), results.get((task, baseline))
-        paths = [None if r is None else os.path.join(r.path, "visits.npz") for r in (a, b)]
-        if None in paths or not all(os.path.exists(p) for p in paths):
-            continue
-        with np.load(paths[0]) as va, np.load(paths[1]) as vb:
-            per_seed = figures.visitation_per_seed(thin_visits(dict(va)), thin_visits(dict(vb)))
-        per_seed = {k: [x for x in v if len(x)] for k, v in per_seed.items()}
-        sizes = [len(x) for v in per_seed.values() for x in v]
-        if not sizes or min(sizes) <= COVERAGE_K or not per_seed[("late", "student")]:
-            continue
-        n, rng = min(sizes), np.random.default_rng(0)
-        per_seed = {k: [figures.subsample(x, n, rng) for x in v] for k, v in per_seed.items()}
-        pooled = np.concatenate([x for v in per_seed.values() for x in v], 0)
-        mu, sd = pooled.mean(0), pooled.std(0)
-        sd = np.where(sd > 1e-8, sd, 1.0)
-        z = {k: [(x - mu) / sd for x in v] for k, v in per_seed.items()}
-        pca = PCA(n_components=2, random_state=0).fit((pooled - mu) / sd)
-        proj = pca.transform((pooled - mu) / sd)
-        low, high = np.percentile(proj, 1, axis=0), np.percentile(proj, 99, axis=0)
-        values = {}
-        for (when, who), xs in z.items():
-            if not xs:
-                continue
-            students = z[(when, "student")]
-            values[(when, who)] = {
-                "occupied": [occupied_fraction(pca.transform(x), low, high) for x in xs],
-                "spread": [knn_distance(x) for x in xs],
-                "to_student": ([knn_distance(x, 1) for x in xs] if who == "student" else
-                               [nearest_distance(x, students[i % len(students)]) for i, x in enumerate(xs)])}
-            out["rows"].append({"task": task, "phase": when, "group": who, "seeds": len(xs), "states_per_seed": n,
-                                **{m: dict(zip(("mean", "lo", "hi"), bootstrap_mean(v)))
-                                   for m, v in values[(when, who)].items()}})
-        for when in ("early", "late"):
-            t, d, st = values.get((when, "teacher")), values.get((when, "ddpg")), values.get((when, "student"))
-            if t is None:
-                continue
-            comps = []
-            if d is not None:
-                comps += [("occupied", "teacher − noise baseline", bootstrap_difference(t["occupied"], d["occupied"])),
-                          ("spread", "teacher − noise baseline", bootstrap_difference(t["spread"], d["spread"]))]
-            if st is not None and len(st["to_student"]) == len(t["to_student"]):
-                paired = np.asarray(t["to_student"]) - np.asarray(st["to_student"])
-                comps.append(("to_student", "teacher − student (paired by seed)", bootstrap_mean(paired)))
-            for measure, what, (diff, lo, hi) in comps:
-                out["comparisons"].append({"task": task, "phase": when, "measure": measure, "comparison": what,
-                                           "difference": diff, "lo": lo, "hi": hi,
-                                           "reading": "higher" if lo > 0 else "lower" if hi < 0 else "no clear difference"})
-    return out
-
-
-def write_coverage(coverage: dict, out_dir: str, footer: str, preset: str, baseline: str,
-                   build_commit: str | None = None, student: str = "ddpg") -> list[str]:
-    """coverage.md and coverage.json from ``coverage_rows``; returns the paths (none when no task has both
-    visitation samples)."""
-    from experiments.stats import COVERAGE_DEFINITION
-
-    if not coverage["rows"]:
-        return []
-    paths = [os.path.join(out_dir, "coverage.md"), os.path.join(out_dir, "coverage.json")]
-    names = dict(COVERAGE_GROUPS, ddpg=METHOD_NAMES.get(baseline, baseline))
-    measures = {"occupied": "occupied cells", "spread": "5-NN spread", "to_student": "distance to the student"}
-    ci = lambda e: f"{fmt(e['mean'], 3)} [{fmt(e['lo'], 3)}, {fmt(e['hi'], 3)}]"
-    md = [f"# State coverage of the visited states ({grid_label(preset, student)})", "",
-          "The numbers behind the state-visitation figures (`visitation_<task>.png`, the paper's Figure 4): how "
-          "much of the state space each explorer's data covers and how far the teacher's states lie from the "
-          "student's, from the same stored samples (the first and the latest states each seed visited).", "",
-          f"- {COVERAGE_DEFINITION}.",
-          "- comparisons: teacher − noise baseline (independent runs: each group's seeds resampled on their own) "
-          "and the teacher's distance to the student's states − the student's own (the same runs: paired by "
-          "seed); 'higher' / 'lower' where the 95% interval excludes 0."]
-    for task in dict.fromkeys(r["task"] for r in coverage["rows"]):
-        rows = [r for r in coverage["rows"] if r["task"] == task]
-        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
-               f"{rows[0]['states_per_seed']} states per seed and group.", "",
-               "| phase | group | seeds | " + " | ".join(measures.values()) + " |", "|---|---|---|---|---|---|"]
-        for r in rows:
-            md.append(f"| {r['phase']} | {names[r['group']]} | {r['seeds']} | "
-                      + " | ".join(ci(r[m]) for m in measures) + " |")
-        comps = [c for c in coverage["comparisons"] if c["task"] == task]
-        md += ["", "| phase | measure | comparison | difference [95% CI] | reading |", "|---|---|---|---|---|"]
-        for c in comps:
-            md.append(f"| {c['phase']} | {measures[c['measure']]} | {c['comparison']} | "
-                      f"{fmt(c['difference'], 3)} [{fmt(c['lo'], 3)}, {fmt(c['hi'], 3)}] | {c['reading']} |")
-    md.append(footer)
-    _write_md_and_json(paths[0], md, paths[1], preset, student,
-                       {"baseline": baseline, "definition": COVERAGE_DEFINITION, "build_commit": build_commit,
-                        **coverage})
-    return paths
-
-
-# ---------------------------------------------------------------------------------------------- README
-
-def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequence[str], footer: str,
-                 families: list[dict] | None = None) -> str:
-    """``README.md``: what each artefact is, which cells were run, and the headline numbers (the final returns
-    and the corrected verdicts against the grid's baseline, ``verdict_families``' first family)."""
-    preset, student = manifest["build"]["preset"], manifest["build"].get("student", "ddpg")
-    baseline = METHOD_NAMES.get(baseline_for(preset, student), baseline_for(preset, student))
-    cells = manifest["cells"]
-    done = [c for c in cells if c["complete"]]
-    have = set(manifest["files"])
-    lines = [f"# Results ({grid_label(preset, student)})", "",
-             f"Rebuilt by `python -m experiments.reproduce --artefacts-only` (or `python -m experiments.artefacts`) "
-             f"from the run folders under `{manifest['build']['runs_dir']}/{preset}/<task>/<method>` (not committed) "
-             f"and, for cells without a finished run folder, the committed copies of finished cells in "
-             f"`cells/<task>/<method>` (config, metrics, summary, provenance, thinned visitation sample). "
-             f"{len(done)} finished and {len(cells) - len(done)} unfinished cells are stored; "
-             f"{len(manifest['not_run'])} cells of the grid were not run.", "",
-             "| file | content |", "|---|---|"]
-    desc = {
-        "table2.md": "the paper's Table 2: final return mean ± std per task and method, 95% CIs, budget and seeds, "
-                     "next to the paper's numbers; the verdicts against each noise baseline (Holm-corrected, "
-                     "equivalence within a declared margin)",
-        "table2.json": "the same, machine-readable (with per-seed final returns)",
-        "table2_per_seed.csv": "per-seed final returns of every finished cell",
-        "steps_to_threshold.md": "first env step at which each method's seed-mean curve reaches DDPG's best "
-                                 "(and the ratio to DDPG's step)",
-        "steps_to_threshold.csv": "steps-to-threshold as CSV (threshold, step, DDPG step, ratio per task and method)",
-        "comparisons.md": "every method against every other per task: medians, ranges, best seed means, "
-                          "differences, Welch p, at how many evaluations one seed-mean curve is above the other",
-        "comparisons.json": "the same, machine-readable",
-        "behaviour.md": "what the explorer put in the buffer per cell: the exploration episodes' return and, for a "
-                        "teacher, its log-std, distance to the student and meta reward, first chunk vs final window",
-        "behaviour.json": "the same, machine-readable",
-        "coverage.md": "state coverage as numbers behind the visitation figures: occupied cells of a fixed 2-D grid, "
-                       "k-NN spread and distance to the student's states per group, early vs late, with bootstrap "
-                       "intervals, and the teacher's against the noise baseline's and the student's",
-        "coverage.json": "the same, machine-readable",
-        "teacher_designs_idp.png": "Figure 2: independent vs variance teacher vs DDPG on InvertedDoublePendulum",
-        "manifest.json": "provenance: commit, machine, and per cell config, seeds, budget, wall time",
-        "aggregate.md": "aggregate scores over the tasks (IQM, mean, optimality gap of normalised final returns) "
-                        "and the probability of improvement, with 95% stratified bootstrap intervals",
-        "aggregate.json": "the same, machine-readable, with the normalisation anchors used",
-        "performance_profiles.png": "performance profiles: the fraction of seeds above each normalised score",
-    }
-    for f in manifest["files"]:
-        if f == "README.md":
-            continue
-        if f.startswith("curves_"):
-            d = f"Figure 3: learning curves on {f[7:-4]}, mean ± std over seeds per method"
-        elif f.startswith("visitation_"):
-            d = f"Figure 4: states visited by teacher, student and DDPG, early vs late, on {f[11:-4]}"
-        elif f.startswith("teacher_designs_"):
-            d = desc["teacher_designs_idp.png"] if f == "teacher_designs_idp.png" else "teacher designs vs DDPG"
-        else:
-            d = desc.get(f, "")
-        lines.append(f"| `{f}` | {d} |")
-    lines.append("| `manifest.json` | " + desc["manifest.json"] + " |")
-    absent = manifest.get("grid_without_cells", {})
-    if absent.get("tasks") or absent.get("methods"):
-        lines += ["", "Left out of the tables (the grid has no cell stored for them): "
-                  + "; ".join(part for part in (
-                      ", ".join(TASK_NAMES.get(t, t) for t in absent.get("tasks", [])),
-                      ", ".join(METHOD_NAMES.get(m, m) for m in absent.get("methods", []))) if part) + "."]
-    if manifest.get("aggregate_not_built"):
-        lines += ["", f"No aggregate scores: {manifest['aggregate_not_built']}."]
-    if "teacher_designs_idp.png" not in have:
-        lines += ["", "No InvertedDoublePendulum run is stored, so `teacher_designs_idp.png` (Figure 2) is not built."]
-    if not any(f.startswith("visitation_") for f in have):
-        lines += ["", f"No task has both a Meta (independent) and a {baseline} run with `visits.npz`, so the "
-                      "state-visitation figure is not built."]
-    lines += ["", "## Final return (mean ± std over seeds; see `table2.md` for definitions and CIs)", "",
-              "| task | " + " | ".join(METHOD_NAMES.get(m, m) for m in methods)
-              + f" | verdict against {baseline} (Holm p) |", "|---|" + "---|" * len(methods) + "---|"]
-    fixed = (families or verdict_families(rows, methods, baseline_for(preset, student)))[0]["comparisons"]
-    for row in rows:
-        said = "; ".join(f"{METHOD_NAMES.get(c['method'], c['method'])}: {c['verdict']} ({fmt_p(c['p_holm'])})"
-                         for c in fixed if c["task"] == row["task"])
-        lines.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
-                     " | ".join(_cell_text(row["methods"][m]) for m in methods) + f" | {said or 'not compared'} |")
-    lines.append(footer)
-    path = os.path.join(out_dir, "README.md")
-    with open(path, "w") as f:
-        f.write("\n".join(lines))
-    return path

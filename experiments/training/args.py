@@ -1,0 +1,178 @@
+"""What the training commands share before anything compiles: the run arguments (``RUN_ARGS``: what
+``config.json`` stores so that ``--resume`` can rebuild and compare a run), their ``--plugin`` imports, the
+validated config built from them, the checks of a resumed run, and the run's labels.
+
+``experiments.run``, ``experiments.sweep`` and ``experiments.reproduce`` use them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+
+from metapg_jax import config as config_lib
+from metapg_jax import strategy
+
+# The explorers' command-line shortcuts for one field of their group (``--teacher``, ``--noise``;
+# metapg_jax.strategy.flags): {option: (explorer, dotted field)}.
+FLAGS = strategy.flags()
+# Arguments that define the run; stored in config.json so --resume can rebuild and compare it. The main job
+# trains the paper's teacher: --method defaults to meta.
+RUN_ARGS = {"env": "pendulum", "method": "meta", **{flag: None for flag in FLAGS}, "preset": "paper",
+            "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "auto",
+            "student": "ddpg", "overrides": [], "plugins": []}
+
+
+def parse_overrides(items: list[str]) -> dict[str, str]:
+    out = {}
+    for item in items:
+        if "=" not in item:
+            raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
+        k, v = item.split("=", 1)
+        out[k.strip()] = v.strip()
+    return out
+
+
+def run_args(args: argparse.Namespace, stored: dict | None = None) -> dict:
+    """The run-defining arguments: given ones, else the stored run's (on resume), else the defaults."""
+    # (A stored run older than an argument has the argument's default.)
+    base = dict(RUN_ARGS if stored is None else {**RUN_ARGS, **stored})
+    for k in RUN_ARGS:
+        v = getattr(args, k)
+        if v is not None:
+            # --set on a resumed run adds to the stored overrides (and must not change anything).
+            base[k] = list(base["overrides"]) + v if k == "overrides" else v
+    return base
+
+
+def import_plugins(names: list[str]) -> None:
+    """Imports each ``--plugin`` (a dotted module name, or a path to a .py file) once per process."""
+    import importlib
+    import importlib.util
+
+    for name in names:
+        if name.endswith(".py"):
+            path = os.path.abspath(name)
+            module_name = "metapg_plugin_" + "".join(c if c.isalnum() else "_" for c in path)
+            if module_name in sys.modules:
+                continue
+            if not os.path.isfile(path):
+                raise ValueError(f"--plugin {name}: no such file")
+            spec = importlib.util.spec_from_file_location(module_name, path)
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[module_name] = module
+            try:
+                spec.loader.exec_module(module)
+            except Exception as err:
+                del sys.modules[module_name]
+                raise ValueError(f"--plugin {name}: importing it failed: {type(err).__name__}: {err}") from None
+        else:
+            try:
+                importlib.import_module(name)
+            except ImportError as err:
+                raise ValueError(f"--plugin {name}: cannot import it: {err}") from None
+
+
+def config_from_run_args(a: dict) -> config_lib.Config:
+    """Builds and validates the config; raises ValueError with one line on bad input. ``a["physics"]``
+    may be 'auto' (make_config resolves it; ``resolved_run_args`` stores the engine it chose)."""
+    import_plugins(a.get("plugins") or [])
+    if a["seeds"] <= 0:
+        raise ValueError(f"--seeds must be positive, got {a['seeds']}")
+    if a["steps"] is not None and a["steps"] <= 0:
+        raise ValueError(f"--steps must be positive, got {a['steps']}")
+    if not 0 <= a["seed"] < 2 ** 32:
+        raise ValueError(f"--seed must be in [0, 2**32), got {a['seed']}")
+    for flag, (owner, _) in FLAGS.items():
+        if a.get(flag) is not None and a["method"] != owner:
+            raise ValueError(f"--{flag} applies to --method={owner} only")
+    cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], steps=a["steps"],
+                                 source=a["source"], overrides=parse_overrides(a["overrides"]),
+                                 physics=a["physics"], student=a["student"],
+                                 **{flag: a.get(flag) for flag in FLAGS})
+    return config_lib.validate(cfg)
+
+
+def resolved_run_args(a: dict, cfg: config_lib.Config) -> dict:
+    """The run args as stored: ``physics`` names the engine the config resolved (never 'auto'), so a
+    resume on another backend keeps the engine the run started on."""
+    return {**a, "physics": cfg.env.physics}
+
+
+def physics_label(cfg: config_lib.Config) -> str:
+    if cfg.env.name == "pendulum":
+        return "JAX"
+    return "MuJoCo C" if cfg.env.physics == "mujoco" else "MJX"
+
+
+def run_label(cfg: config_lib.Config) -> str:
+    """E.g. 'pendulum meta/independent' or 'hopper ddpg/adaptive-param (td3)': the explorer's label, and the
+    student where it is not the default one."""
+    label = cfg.explorer_spec.label
+    detail = f"/{label(cfg)}" if label else ""
+    student = "" if cfg.student == RUN_ARGS["student"] else f" ({cfg.student})"
+    return f"{cfg.env.name} {cfg.run.method}{detail}{student}"
+
+
+def check_devices(num_seeds: int) -> None:
+    import jax
+
+    n = jax.device_count()
+    if num_seeds % n:
+        raise ValueError(f"--seeds={num_seeds} is not a multiple of the {n} devices the seed axis is sharded over; "
+                         f"use a multiple of {n} (or limit the devices, e.g. CUDA_VISIBLE_DEVICES)")
+
+
+def resume_args(args: argparse.Namespace, out: str) -> tuple[config_lib.Config, dict, int | None]:
+    """A resumed run's (config, run args, stored budget when the resume extends it, else None), from its
+    ``config.json`` and the options given; raises ``ValueError`` (one line) when the options would change the
+    stored run, when ``--steps`` shortens it, or when there is nothing to resume from."""
+    extend_from = None
+    path = os.path.join(out, "config.json")
+    if not os.path.exists(path):
+        raise ValueError(f"--resume {out}: no config.json there (not a run folder)")
+    with open(path) as f:
+        stored = json.load(f)
+    if args.out is not None and os.path.abspath(args.out) != os.path.abspath(out):
+        raise ValueError("--out and --resume name different folders; a resumed run writes into its own folder")
+    # A run stored before --physics existed ran on its config's engine (MJX, the default then).
+    stored_args = {"physics": stored["config"]["env"].get("physics", "mjx"), **stored["run_args"]}
+    a = run_args(args, stored_args)
+    cfg = config_from_run_args(a)
+    a = resolved_run_args(a, cfg)
+    old_steps, new_steps = stored["config"]["run"]["total_steps"], cfg.run.total_steps
+    if new_steps != old_steps:
+        if new_steps < old_steps:
+            raise ValueError(f"--resume {out}: --steps={new_steps} is below the stored budget of {old_steps:,} "
+                             f"env steps; a run can be extended, not shortened")
+        extend_from = old_steps
+        # Where the default evaluation interval is derived from the budget (config.make_config: budgets
+        # under ten task intervals, or not a multiple of one), an extension keeps the stored interval.
+        stored_every = stored["config"]["run"]["eval_every"]
+        if cfg.run.eval_every != stored_every and "run.eval_every" not in parse_overrides(a["overrides"]):
+            if new_steps % stored_every:
+                raise ValueError(f"--resume {out}: the run's evaluation interval, {stored_every:,} env steps, "
+                                 f"does not divide --steps={new_steps:,}; extend it to a multiple of "
+                                 f"{stored_every:,} or start a new run")
+            a = {**a, "overrides": list(a["overrides"]) + [f"run.eval_every={stored_every}"]}
+            cfg = config_from_run_args(a)
+            a = resolved_run_args(a, cfg)
+    # An extension changes the budget only (experiments.run's docstring).
+    # (Read back through from_dict: fields newer than the stored run compare as their defaults.)
+    stored_cfg = config_lib.to_dict(config_lib.from_dict(stored["config"]))
+    same_budget = {**stored_cfg, "run": {**stored_cfg["run"], "total_steps": new_steps}}
+    differences = config_lib.diff(same_budget, config_lib.to_dict(cfg))
+    differences += [f"{k} ({stored['run_args'][k]!r} -> {a[k]!r})" for k in ("seeds", "seed")
+                    if stored["run_args"][k] != a[k]]
+    if differences:
+        what = f"extending it to {new_steps:,} steps would also change" if extend_from else \
+            "the options given change the stored run"
+        hint = " (pass the stored value with --set)" if extend_from else ""
+        raise ValueError(f"--resume {out}: {what}: {'; '.join(differences)}{hint}")
+    from metapg_jax.host.checkpoint import saved_steps
+
+    if not saved_steps(os.path.join(out, "checkpoints")):
+        raise ValueError(f"--resume {out}: no checkpoint under {out}/checkpoints; nothing to resume from")
+    return cfg, a, extend_from
