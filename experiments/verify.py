@@ -14,8 +14,11 @@ gives the same first intervals: ``docs/long-runs.md``), in a ``git worktree`` of
 metrics rows are compared with the stored rows of the same chunks and seeds, field by field (timings
 left out). The result goes to ``<cell>/verified.json`` (the command, the commit, both numbers per seed,
 the largest relative difference and the verdict: ``reproduced`` when every compared value agrees within
-``--rtol``, else ``differs``), which the results manifest and footers report. A budget extension run from
-a later, dirty tree is not covered: its code starts after the first intervals.
+``--rtol``, else ``differs``; ``same_cpu``: whether the cell was recorded on this CPU), which the results
+manifest and footers report. Bit-for-bit equality needs the CPU the cell ran on (XLA compiles for the CPU
+it runs on; ``metapg_jax.host.provenance.cpu_fingerprint``, recorded with every run): on another CPU a
+chaotic task's re-run differs after round-off grows, and ``differs`` says nothing about the code. A budget
+extension run from a later, dirty tree is not covered: its code starts after the first intervals.
 """
 
 from __future__ import annotations
@@ -110,6 +113,17 @@ def compare(stored: list[dict], rerun: list[dict], chunks: int, rtol: float) -> 
             "rows": rows}
 
 
+def _same_cpu(cell: str) -> bool | None:
+    """Whether the cell's first run recorded this machine's CPU fingerprint (``provenance.cpu_fingerprint``);
+    None for a cell recorded before fingerprints were. XLA compiles for the CPU it runs on: on another CPU a
+    re-run of the same commit may differ by round-off, which a chaotic task grows into other numbers."""
+    from metapg_jax.host import provenance
+
+    with open(os.path.join(cell, "config.json")) as f:
+        cpu = json.load(f).get("machine", {}).get("cpu")
+    return None if cpu is None else cpu == provenance.cpu_fingerprint()
+
+
 def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = None, at: str | None = None) -> dict:
     """Re-runs the cell's first ``chunks`` intervals at its commit, or at ``at`` (another commit, e.g. the one
     that committed the changes a dirty cell ran with; recorded as such), see the module docstring; returns
@@ -138,8 +152,10 @@ def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = No
         subprocess.run(["git", "worktree", "remove", "--force", src], cwd=ROOT, capture_output=True)
         if keep is None:
             shutil.rmtree(work, ignore_errors=True)
-    record = {"commit": commit, **({} if commit == recorded else {"recorded_commit": recorded}), "command": ["python", "-m", "experiments.run", *argv[:-2], "--out", "<tmp>"],
+    record = {"commit": commit, **({} if commit == recorded else {"recorded_commit": recorded}),
+              "command": ["python", "-m", "experiments.run", *argv[:-2], "--out", "<tmp>"],
               "chunks": chunks, "env_steps": chunks * eval_every, "rtol": rtol, **result,
+              "same_cpu": _same_cpu(cell),
               "checked": {"date": datetime.date.today().isoformat(), **provenance.record()}}
     runfiles.write_json_atomic(os.path.join(cell, RESULT), record)
     return record
@@ -171,10 +187,14 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{cell}: error: {getattr(err, 'stderr', None) or err}".strip(), file=sys.stderr)
             status = 1
             continue
+        note = ""
+        if r["verdict"] != "reproduced" and not r["same_cpu"]:
+            note = ("; the cell was recorded on another CPU" if r["same_cpu"] is False else
+                    "; the cell's CPU was not recorded") + " (bit-for-bit equality needs the same CPU)"
         print(f"{cell}: {r['verdict']} at {r['commit'][:7]}"
               + (f" (recorded: {r['recorded_commit'][:7]})" if "recorded_commit" in r else "")
-              + f" over {r['env_steps']:,} env steps (largest relative difference {r['max_relative_difference']})",
-              flush=True)
+              + f" over {r['env_steps']:,} env steps (largest relative difference {r['max_relative_difference']})"
+              + note, flush=True)
         status = status or (0 if r["verdict"] == "reproduced" else 1)
     return status
 

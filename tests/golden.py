@@ -22,6 +22,7 @@ import jax
 import numpy as np
 
 from metapg_jax.config import make_config
+from metapg_jax.host import provenance
 from metapg_jax.train import make_train, seed_keys, vmap_seeds
 from tests.helpers import tiny_config
 
@@ -108,16 +109,8 @@ def assert_stored(name: str, got: dict) -> None:
 
 def machine() -> dict:
     """What decides whether float32 results can be equal bit for bit: the CPU and the JAX version."""
-    model = ""
-    if os.path.exists("/proc/cpuinfo"):
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith(("model name", "flags")):
-                    model += line.split(":", 1)[1].strip() + "\n"
-                if line.startswith("flags"):
-                    break
-    return {"cpu": hashlib.sha256(model.encode()).hexdigest()[:16], "processor": platform.machine(),
-            "jax": jax.__version__, "backend": jax.default_backend()}
+    return {"cpu": provenance.cpu_fingerprint(), "processor": platform.machine(), "jax": jax.__version__,
+            "backend": jax.default_backend()}
 
 
 def main(argv: list[str]) -> int:

@@ -82,7 +82,8 @@ def test_a_stored_group_nobody_declares_is_refused_and_moved_fields_are_read_in_
 GENERIC = ["metapg_jax/config.py", "metapg_jax/loop.py", "metapg_jax/train.py", "metapg_jax/sweep.py",
            "metapg_jax/seeds.py", "metapg_jax/strategy.py", "metapg_jax/actor_critic.py", "metapg_jax/rollout.py",
            "metapg_jax/evaluate.py", "metapg_jax/replay.py", "metapg_jax/visits.py", "envs/__init__.py",
-           "experiments/run.py", "experiments/sweep.py", "experiments/export.py",
+           "experiments/run.py", "experiments/sweep.py", "experiments/export.py", "experiments/training/args.py",
+           "experiments/training/memory.py", "experiments/training/finish.py", "experiments/training/grid_cells.py",
            *(f"metapg_jax/host/{f}" for f in sorted(os.listdir(os.path.join(ROOT, "metapg_jax", "host")))
              if f.endswith(".py"))]
 

@@ -28,7 +28,6 @@ def _rss_mib() -> float:
     return float("nan")
 
 
-
 def measure_one(spec: dict) -> dict:
     """All measurements for one configuration, in this process."""
     import jax

@@ -13,6 +13,7 @@ import time
 
 from experiments.build.cells import archive_cell, archive_dir_for, read_json
 from experiments.build.grid import METHODS, baseline_for
+from experiments.training.args import RUN_ARGS
 
 
 def cell_dir(runs_dir: str, preset: str, task: str, method: str) -> str:
@@ -61,7 +62,7 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
             f"--seed={args.seed}", f"--source={args.source}"]
     if task != "pendulum":  # named always: experiments.run's own default, 'auto', depends on the backend
         argv.append(f"--physics={args.physics}")
-    if args.student != "ddpg":
+    if args.student != RUN_ARGS["student"]:  # named when it is not experiments.run's default
         argv.append(f"--student={args.student}")
     if args.steps is not None or state == "extend":
         argv.append(f"--steps={wanted_budget(args, task)}")

@@ -21,6 +21,23 @@ def _git(*args: str) -> str:
 _CODE = ("--", ".", ":(exclude)results")
 
 
+def cpu_fingerprint() -> str:
+    """A short hash of the CPU's model name and instruction-set flags (``/proc/cpuinfo``; '' elsewhere). XLA
+    compiles for the CPU it runs on, so float32 results are equal bit for bit only between machines with the
+    same fingerprint (and JAX version); elsewhere a chaotic task's runs differ after round-off grows."""
+    import hashlib
+
+    model = ""
+    if os.path.exists("/proc/cpuinfo"):
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith(("model name", "flags")):
+                    model += line.split(":", 1)[1].strip() + "\n"
+                if line.startswith("flags"):
+                    break
+    return hashlib.sha256(model.encode()).hexdigest()[:16] if model else ""
+
+
 def record() -> dict:
     """The commit (and whether the tree had changes) and the machine, recorded with every run.
 
@@ -29,7 +46,7 @@ def record() -> dict:
     cells that start after it. ``uncommitted_diff`` gives the changes themselves."""
     import platform
 
-    machine = {"platform": platform.platform(), "processor": platform.machine(),
+    machine = {"platform": platform.platform(), "processor": platform.machine(), "cpu": cpu_fingerprint(),
                "cpu_count": os.cpu_count(), "python": platform.python_version()}
     try:
         import jax
