@@ -53,7 +53,7 @@ from metapg_jax import config as config_lib
 from metapg_jax import strategy
 from metapg_jax.host import compile_cache
 from metapg_jax.host.processes import barrier, maybe_initialize_distributed, to_host
-from metapg_jax.host.runner import Signals, Stopped, restart_command, run_chunks, stop_message
+from metapg_jax.host.runner import Session, restart_command
 
 from experiments.training.args import (FLAGS, RUN_ARGS, check_devices, config_from_run_args, physics_label,
                                        resolved_run_args, resume_args, run_args, run_label)
@@ -194,22 +194,22 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
     """Trains the run (``prepare``'s outputs); returns the exit status. ``restart``: the command that
     starts it again (printed if it is stopped before its first checkpoint); ``trainer``: the config's
     (``make_train``), if built already."""
-    with Signals() as signals:
-        try:
-            return _run(signals, cfg, a, out, resume=resume, overwrite=overwrite, plot=plot, quiet=quiet,
-                        checkpoint_every=checkpoint_every, checkpoint_minutes=checkpoint_minutes,
-                        extend_from=extend_from, tensorboard=tensorboard, trainer=trainer)
-        except Stopped as stop:  # while compiling or in the loop (_run has closed its files and progress bar)
-            from metapg_jax.host.checkpoint import saved_steps
+    from metapg_jax.host.checkpoint import saved_steps
 
-            done = saved_steps(os.path.join(out, "checkpoints"))
-            print("\n" + stop_message(stop, "the run", signals.in_flight, cfg.num_chunks, done[-1] if done else None,
-                                      cfg.run.eval_every, f"python -m experiments.run --resume {out}", restart or ""),
-                  file=sys.stderr, flush=True)
-            return stop.status
+    def checkpointed() -> int | None:
+        done = saved_steps(os.path.join(out, "checkpoints"))
+        return done[-1] if done else None
+
+    session = Session("the run", checkpointed, cfg.num_chunks, cfg.run.eval_every,
+                      f"python -m experiments.run --resume {out}", restart or "")
+    with session:  # a stop while compiling or in the loop: the stop line, session.status
+        return _run(session, cfg, a, out, resume=resume, overwrite=overwrite, plot=plot, quiet=quiet,
+                    checkpoint_every=checkpoint_every, checkpoint_minutes=checkpoint_minutes,
+                    extend_from=extend_from, tensorboard=tensorboard, trainer=trainer)
+    return session.status
 
 
-def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bool, overwrite: bool, plot: bool,
+def _run(session: Session, cfg: config_lib.Config, a: dict, out: str, resume: bool, overwrite: bool, plot: bool,
          quiet: bool, checkpoint_every: int, checkpoint_minutes: float, extend_from: int | None, tensorboard: bool,
          trainer) -> int:
     import jax
@@ -251,7 +251,7 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
     cache, cache_before = compile_cache.current(), compile_cache.counts()
     t0 = time.perf_counter()
     init_fn = jax.jit(vmap_seeds(trainer.init), out_shardings=seeds_sharding)
-    checkpointer = Checkpointer(os.path.join(out, "checkpoints"))
+    checkpointer = session.keep(Checkpointer(os.path.join(out, "checkpoints")))
     start = 0
     if resume:
         state, meta = checkpointer.restore(checkpoint_shapes(trainer, keys))
@@ -282,19 +282,19 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
     def ckpt_meta():
         return {"config": config_lib.to_dict(cfg), "run_args": a}
 
-    metrics_writer = runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl")) if main_process else None
-    cycle_writer = (runfiles.JsonlWriter(os.path.join(out, "cycles.jsonl"))
+    metrics_writer = session.keep(runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl"))) if main_process else None
+    cycle_writer = (session.keep(runfiles.JsonlWriter(os.path.join(out, "cycles.jsonl")))
                     if cfg.explorer_spec.cycle_metrics and main_process else None)
     tb_writer = None
     if tensorboard and main_process:
-        tb_writer = tb_events.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle)
+        tb_writer = session.keep(tb_events.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle))
         if resume:  # the JSONL files end at the checkpoint now (truncated above)
             cycles_path = os.path.join(out, "cycles.jsonl")
             tb_writer.resume(runfiles.read_jsonl(os.path.join(out, "metrics.jsonl")),
                              runfiles.read_jsonl(cycles_path) if os.path.exists(cycles_path) else [],
                              start * cfg.run.eval_every)
-    progress = terminal.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet or not main_process,
-                                  initial=start * cfg.run.eval_every)  # rates: this call's steps only
+    progress = session.keep(terminal.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet or not main_process,
+                                              initial=start * cfg.run.eval_every))  # rates: this call's steps only
     t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
 
     def record(chunk: int, metrics) -> int | None:
@@ -324,20 +324,11 @@ def _run(signals: Signals, cfg: config_lib.Config, a: dict, out: str, resume: bo
     def due(chunks_run: int, since_save: float) -> bool:
         return chunks_run % checkpoint_every == 0 if checkpoint_every else since_save >= 60 * checkpoint_minutes
 
-    try:
-        state, status, chunks_run = run_chunks(
-            chunk_fn, state, start=start, num_chunks=cfg.num_chunks, signals=signals, fetch=to_host, record=record,
-            progress=progress, save=lambda done, s: checkpointer.save(done, s, ckpt_meta()), due=due,
-            interrupted=f"; continue with: python -m experiments.run --resume {out}")
-    finally:
-        progress.close()
-        if metrics_writer is not None:
-            metrics_writer.close()
-        if cycle_writer is not None:
-            cycle_writer.close()
-        if tb_writer is not None:
-            tb_writer.close()
-        checkpointer.close()
+    state, status, chunks_run = session.run(
+        chunk_fn, state, start=start, fetch=to_host, record=record, progress=progress,
+        save=lambda done, s: checkpointer.save(done, s, ckpt_meta()), due=due,
+        interrupted=f"; continue with: python -m experiments.run --resume {out}")
+    session.close()  # the files are complete before the summary reads them
     if status:
         return status
     train_s = time.perf_counter() - t_train

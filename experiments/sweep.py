@@ -239,9 +239,6 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
 
     members, num_seeds = group["settings"], a["seeds"]
     cfg = configs[members[0]]
-    sweep = Sweep(cfg, env, tuple(group["batched"]))
-    values = jnp.repeat(sweep.values([configs[k] for k in members]), num_seeds, axis=0)  # setting-major
-    keys = jnp.concatenate([seed_keys(a["seed"], num_seeds)] * len(members))
     checkpointer = Checkpointer(os.path.join(out, "groups", str(g), "checkpoints"))
     done = checkpointer.steps()
     start = done[-1] if done else 0
@@ -251,63 +248,61 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
         print(f"{label}: done, skipped", flush=True)
         checkpointer.close()
         return 0
-    t0 = time.perf_counter()
-    init_fn = jax.jit(vmap_seeds(sweep.init))
-    if start:
-        state, _ = checkpointer.restore(jax.eval_shape(init_fn, keys, values))
-        metrics_path = os.path.join(out, "metrics.jsonl")
-        runfiles.truncate_jsonl(metrics_path, lambda r: r["setting"] not in members or r["chunk"] < start)
-    else:
-        state = init_fn(keys, values)
-    chunk_fn = jax.jit(vmap_seeds(sweep.train_chunk), donate_argnums=0).lower(state, values).compile()
-    print(f"{label}: {len(members)} x {num_seeds} runs, compiled in {time.perf_counter() - t0:.1f} s"
-          + (f", resumed after {start} of {cfg.num_chunks} chunks" if start else ""), flush=True)
-    writer = runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl"))
-    progress = terminal.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
-                                  disable=args.quiet, initial=start * cfg.run.eval_every)
-    t_train = t_chunk = time.perf_counter()
+    resume = f"python -m experiments.sweep --resume {out}"
 
-    def record(chunk: int, metrics) -> None:
-        nonlocal t_chunk
-        now = time.perf_counter()
-        rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
-        t_chunk = now
-        finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
-        for i, row in enumerate(rows):
-            row["setting"], row["seed"] = members[i // num_seeds], i % num_seeds
-            row["finite"] = bool(finite[i])
-        writer.write(rows)
-
-    signals = runner.Signals()
-    try:
-        with signals:
-            _, status, _ = runner.run_chunks(
-                lambda s: chunk_fn(s, values), state, start=start, num_chunks=cfg.num_chunks, signals=signals,
-                fetch=jax.device_get, record=record, progress=progress,
-                save=lambda done, s: checkpointer.save(done, s, {"group": g, "settings": members}),
-                due=lambda _, since_save: since_save >= 60 * args.checkpoint_minutes,
-                interrupted=f" of group {g + 1}; continue with: python -m experiments.sweep --resume {out}")
-            if status:
-                return status
-    except runner.Stopped as stop:
-        progress.close()
+    def checkpointed() -> int | None:
         done = checkpointer.steps()
-        resume = f"python -m experiments.sweep --resume {out}"
-        chunk = signals.in_flight or start + 1  # the 1-based chunk that was running
-        if done or g == 0:
-            line = runner.stop_message(stop, f"group {g + 1}", chunk, cfg.num_chunks, done[-1] if done else None,
-                                        cfg.run.eval_every, resume, restart)
-        else:  # the earlier groups are finished: --resume skips them and starts this one afresh
-            line = (f"stopped by {stop.args[0]}: chunk {chunk} of {cfg.num_chunks} of group {g + 1} was running "
-                    f"and is lost with the group's earlier chunks (no checkpoint yet); groups 1-{g} are done; "
-                    f"continue with: {resume}")
-        print("\n" + line, file=sys.stderr, flush=True)
-        return stop.status
-    finally:
-        progress.close()
-        writer.close()
-        checkpointer.close()
-    return 0
+        return done[-1] if done else None
+
+    def line(stop: runner.Stopped, in_flight: int | None, checkpointed: int | None) -> str | None:
+        if checkpointed or g == 0:
+            return None  # runner.stop_message's
+        # The earlier groups are finished: --resume skips them and starts this one afresh.
+        lost = (f"chunk {in_flight} of {cfg.num_chunks} of group {g + 1} was running and is lost"
+                if in_flight is not None else f"group {g + 1} had started no chunk")
+        return f"stopped by {stop.who}: {lost} (no checkpoint yet); groups 1-{g} are done; continue with: {resume}"
+
+    session = runner.Session(f"group {g + 1}", checkpointed, cfg.num_chunks, cfg.run.eval_every, resume, restart,
+                             line=line)
+    with session:  # a stop while compiling or in the loop: the stop line, session.status
+        session.keep(checkpointer)
+        sweep = Sweep(cfg, env, tuple(group["batched"]))
+        values = jnp.repeat(sweep.values([configs[k] for k in members]), num_seeds, axis=0)  # setting-major
+        keys = jnp.concatenate([seed_keys(a["seed"], num_seeds)] * len(members))
+        t0 = time.perf_counter()
+        init_fn = jax.jit(vmap_seeds(sweep.init))
+        if start:
+            state, _ = checkpointer.restore(jax.eval_shape(init_fn, keys, values))
+            metrics_path = os.path.join(out, "metrics.jsonl")
+            runfiles.truncate_jsonl(metrics_path, lambda r: r["setting"] not in members or r["chunk"] < start)
+        else:
+            state = init_fn(keys, values)
+        chunk_fn = jax.jit(vmap_seeds(sweep.train_chunk), donate_argnums=0).lower(state, values).compile()
+        print(f"{label}: {len(members)} x {num_seeds} runs, compiled in {time.perf_counter() - t0:.1f} s"
+              + (f", resumed after {start} of {cfg.num_chunks} chunks" if start else ""), flush=True)
+        writer = session.keep(runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl")))
+        progress = session.keep(terminal.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
+                                                  disable=args.quiet, initial=start * cfg.run.eval_every))
+        t_train = t_chunk = time.perf_counter()
+
+        def record(chunk: int, metrics) -> None:
+            nonlocal t_chunk
+            now = time.perf_counter()
+            rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
+            t_chunk = now
+            finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
+            for i, row in enumerate(rows):
+                row["setting"], row["seed"] = members[i // num_seeds], i % num_seeds
+                row["finite"] = bool(finite[i])
+            writer.write(rows)
+
+        _, status, _ = session.run(
+            lambda s: chunk_fn(s, values), state, start=start, fetch=jax.device_get, record=record, progress=progress,
+            save=lambda done, s: checkpointer.save(done, s, {"group": g, "settings": members}),
+            due=lambda _, since_save: since_save >= 60 * args.checkpoint_minutes,
+            interrupted=f" of group {g + 1}; continue with: {resume}")
+        return status
+    return session.status
 
 
 def summary_rows(out: str, settings, configs) -> list[dict]:
@@ -350,7 +345,7 @@ def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
 
     rows = summary_rows(out, settings, configs)
     fields = list(settings[0])
-    md = [f"# Sweep: final evaluation return per setting", "",
+    md = ["# Sweep: final evaluation return per setting", "",
           f"- {FINAL_DEFINITION}; ± is the standard deviation over seeds, CI the 95% t interval of the mean.",
           "- **best**: the highest mean among finished settings with finite parameters.", "",
           "| setting | " + " | ".join(f"`{f}`" for f in fields) + " | final return | 95% CI | seeds | |",

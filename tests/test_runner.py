@@ -1,5 +1,7 @@
 """The shared host loop (metapg_jax/host/runner.py): the chunk loop's order of things and its checkpoint cadence,
-signals and the stop line. Whole runs stopped and resumed: tests/test_longrun.py, test_physics.py, test_sweep.py."""
+signals, the stop line and the session that holds a loop. Whole runs stopped and resumed: tests/test_longrun.py, test_physics.py, test_sweep.py."""
+
+import signal
 
 import numpy as np
 import pytest
@@ -75,3 +77,39 @@ def test_a_stop_that_python_dropped_is_raised_by_the_next_wait():
     assert isinstance(signals.stopped, runner.Stopped)
     with pytest.raises(runner.Stopped, match="SIGTERM"):
         signals.wait({"x": np.zeros(2)})
+
+
+def test_a_session_closes_what_it_kept_and_turns_a_stop_into_its_line_and_status(capsys):
+    """A stop raised while compiling (or in the loop) inside ``with session``: everything kept is closed, last
+    kept first, the stop line is printed with the latest checkpoint, and the status is the signal's."""
+    closed = []
+
+    class Closable:
+        def __init__(self, name):
+            self.name = name
+
+        def close(self):
+            closed.append(self.name)
+
+    session = runner.Session("the run", lambda: 4, 10, 300, "RESUME", "RESTART")
+    with session:
+        session.keep(Closable("checkpointer"))
+        session.keep(Closable("writer"))
+        raise runner.Stopped(signal.SIGTERM)
+    assert session.status == 143 and closed == ["writer", "checkpointer"]
+    err = capsys.readouterr().err
+    assert "stopped by SIGTERM: no chunk had started; the run's last checkpoint holds 4 chunks (1,200 env steps" in err
+    assert err.rstrip().endswith("continue with: RESUME")
+    # A caller's own line wins where it gives one; other errors pass through after closing.
+    session = runner.Session("group 2", lambda: None, 10, 300, "RESUME", "RESTART", line=lambda stop, c, d: "MINE")
+    with session:
+        raise runner.Stopped(signal.SIGINT)
+    assert session.status == 130 and capsys.readouterr().err.strip() == "MINE"
+    session = runner.Session("the run", lambda: None, 10, 300, "RESUME", "RESTART")
+    kept = session.keep(Closable("progress"))
+    try:
+        with session:
+            raise ValueError("not a stop")
+    except ValueError:
+        pass
+    assert closed[-1] == kept.name and session.status == 0

@@ -2,8 +2,9 @@
 to the caller as they come, the progress bar advanced, checkpoints on a cadence, at the end and on a first Ctrl-C,
 and the one line that says what a stop lost and how to go on.
 
-``experiments.run`` (one run) and ``experiments.sweep`` (one program group) drive it; what differs between them
-(the rows they write, the NaN guard, what a checkpoint holds) is theirs, passed in as functions.
+``experiments.run`` (one run) and ``experiments.sweep`` (one program group) each open a ``Session`` before they
+compile and run their program through it; what differs between them (the rows they write, the NaN guard, what
+a checkpoint holds) is theirs, passed in as functions.
 """
 
 from __future__ import annotations
@@ -21,6 +22,11 @@ class Stopped(Exception):
         super().__init__(signal.Signals(signum).name)
         self.signum = signum
         self.status = 128 + signum  # 130 (SIGINT), 143 (SIGTERM): the shells' convention
+
+    @property
+    def who(self) -> str:
+        """'Ctrl-C' (a second one) or the signal's name, as a stop line says it."""
+        return "Ctrl-C" if self.signum == signal.SIGINT else self.args[0]
 
 
 class Signals:
@@ -88,7 +94,7 @@ def stop_message(stop: Stopped, what: str, in_flight: int | None, num_chunks: in
       checkpointed: the chunks the last checkpoint holds (None: no checkpoint).
       resume_command / restart_command: how to continue from a checkpoint / start again without one.
     """
-    who = "Ctrl-C" if stop.signum == signal.SIGINT else stop.args[0]
+    who = stop.who
     lost = (f"chunk {in_flight} of {num_chunks} was running and is lost" if in_flight is not None
             else "no chunk had started")
     if checkpointed:
@@ -143,3 +149,62 @@ def run_chunks(step: Callable[[Any], tuple[Any, Any]], state: Any, *, start: int
             status = 130
             break
     return state, status, chunks_run
+
+
+class Session:
+    """A command's hold on one chunk loop, from before it compiles to its last checkpoint: the signal handlers
+    (``Signals``), what must be closed when the loop ends (``keep``: the checkpointer, the metric writers, the
+    progress bar), and the one line a stop prints.
+
+    ``with session:`` swallows a ``Stopped`` raised inside (while compiling or in the loop): what was kept is
+    closed, the stop line is printed and ``status`` is 130 or 143. Code after the ``with`` block returns
+    ``session.status``.
+
+    Args:
+      what: 'the run', or for a sweep 'group 2'.
+      checkpointed: () -> the chunks the latest checkpoint holds (None: none yet).
+      resume_command / restart_command: as ``stop_message``'s.
+      line: (stop, chunk in flight, checkpointed) -> a stop line of the caller's, or None for ``stop_message``'s.
+    """
+
+    def __init__(self, what: str, checkpointed: Callable[[], int | None], num_chunks: int, every: int,
+                 resume_command: str, restart_command: str,
+                 line: Callable[[Stopped, int | None, int | None], str | None] | None = None):
+        self.signals = Signals()
+        self.status = 0
+        self._what, self._checkpointed, self._num_chunks, self._every = what, checkpointed, num_chunks, every
+        self._resume, self._restart, self._line = resume_command, restart_command, line
+        self._open: list[Any] = []
+
+    def keep(self, thing: Any) -> Any:
+        """``thing`` (anything with ``close()``) is closed when the session ends or ``close`` is called."""
+        self._open.append(thing)
+        return thing
+
+    def close(self) -> None:
+        """Closes what was kept, last kept first (each once)."""
+        while self._open:
+            self._open.pop().close()
+
+    def run(self, step: Callable[[Any], tuple[Any, Any]], state: Any, **kwargs: Any) -> tuple[Any, int, int]:
+        """``run_chunks`` with this session's signals and chunk count (the other arguments are its)."""
+        return run_chunks(step, state, num_chunks=self._num_chunks, signals=self.signals, **kwargs)
+
+    def __enter__(self) -> Session:
+        self.signals.__enter__()
+        return self
+
+    def __exit__(self, typ, err, tb) -> bool:
+        try:
+            self.close()
+        finally:
+            self.signals.__exit__(typ, err, tb)
+        if not isinstance(err, Stopped):
+            return False
+        checkpointed = self._checkpointed()
+        text = self._line(err, self.signals.in_flight, checkpointed) if self._line else None
+        print("\n" + (text or stop_message(err, self._what, self.signals.in_flight, self._num_chunks, checkpointed,
+                                           self._every, self._resume, self._restart)), file=sys.stderr, flush=True)
+        self.status = err.status
+        return True
+
