@@ -1,0 +1,3 @@
+"""Artefact building: the grids' cells and archive (``cells``, ``grid``), the statistics every table uses
+(``stats``), and the tables, figures and plots built from stored runs. The commands in ``experiments/``
+(``artefacts``, ``reproduce``, ``screen``, ``ablation``, ``aggregate``, ``normalisation``, ``verify``) drive them."""

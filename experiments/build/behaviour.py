@@ -1,0 +1,202 @@
+"""What the explorers put in the buffer, from stored cells: the behaviour table (``behaviour.md`` / ``.json``:
+exploration-episode returns, the teacher's scale, the distance of the exploring policy from the student, first
+and final) and the coverage of the state space by each data source (``coverage.md`` / ``.json``)."""
+
+from __future__ import annotations
+
+import os
+import warnings
+from typing import Sequence
+
+import numpy as np
+
+from experiments.build.cells import BEHAVIOUR_METRICS
+from experiments.build.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, grid_label
+from experiments.build.stats import final_returns, fmt, mean_std
+from experiments.build.tables import write_md_and_json
+
+
+BEHAVIOUR_COLUMNS = tuple(zip(BEHAVIOUR_METRICS, ("exploration-episode return", "teacher log-std",
+                                                  "teacher-student distance", "meta reward")))
+
+
+def _seed_mean_first_final(values: np.ndarray) -> dict:
+    """A behaviour metric's (seeds, T) chunks: the seed mean of the first chunk, and the seeds' mean and std
+    of the final window (the final return's: the last max(1, floor(T/10)) chunks); NaN (a chunk where no
+    exploration episode ended) is left out of every mean."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN column is reported as n/a
+        final = final_returns(values)
+        final = final[np.isfinite(final)]
+        mean, std = mean_std(final)
+        return {"first": float(np.nanmean(values[:, 0])), "final_mean": mean, "final_std": std,
+                "final_seeds": int(final.size)}
+
+
+def behaviour_rows(results: dict, tasks: Sequence[str], methods: Sequence[str]) -> list[dict]:
+    """What the explorer put in the buffer, per finished cell that logged it (``cells.BEHAVIOUR_METRICS``):
+    the return of the exploration episodes (DDPG: the noisy or perturbed student; Meta: the teacher's D0)
+    and, for a teacher, its log-std, its RMS distance to the student's action on D0 and the meta reward,
+    each at the first chunk and over the final window (``_seed_mean_first_final``); the final evaluation
+    return of the same cell for reference."""
+    rows = []
+    for task in tasks:
+        for m in methods:
+            r = results.get((task, m))
+            if r is None or not r.complete or not r.behaviour:
+                continue
+            rows.append({"task": task, "method": m, "n": r.num_seeds, "budget": r.budget,
+                         "eval_final": float(r.final().mean()),
+                         **{k: _seed_mean_first_final(r.behaviour[k]) for k, _ in BEHAVIOUR_COLUMNS
+                            if k in r.behaviour}})
+    return rows
+
+
+def write_behaviour(rows: list[dict], out_dir: str, footer: str, preset: str, build_commit: str | None = None,
+                    student: str = "ddpg") -> list[str]:
+    """behaviour.md and behaviour.json from ``behaviour_rows``; returns the paths."""
+    paths = [os.path.join(out_dir, "behaviour.md"), os.path.join(out_dir, "behaviour.json")]
+    md = [f"# What the explorer put in the buffer ({grid_label(preset, student)})", "",
+          "From the per-chunk training metrics of the finished cells (`metrics.jsonl`), next to the final "
+          "evaluation return:", "",
+          "- exploration-episode return: the mean return of the episodes that ended during a chunk's exploration "
+          "rollouts: DDPG's student with its noise (Gaussian, OU) or perturbed weights (param noise); Meta's "
+          "teacher collecting D0 (D1, the student's deterministic rollouts that also go to the buffer, is not "
+          "counted). Chunks in which no episode ended are left out.",
+          "- teacher log-std: the mean over D0's states and action dimensions; teacher-student distance: the RMS "
+          "difference between the teacher's action and the student's deterministic action on D0's states "
+          "(actions in [-1, 1]); meta reward: R_hat(pi') - R_hat(pi) (Algorithm 1).",
+          "- first: the seed mean of the first chunk (the first evaluation interval); final: mean ± std over "
+          "seeds of each seed's mean over the final return's window (the last max(1, floor(T/10)) chunks)."]
+    for task in dict.fromkeys(r["task"] for r in rows):
+        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
+               "| method | seeds | final evaluation return | " +
+               " | ".join(f"{label}, first | {label}, final" for _, label in BEHAVIOUR_COLUMNS) + " |",
+               "|---|---|---|" + "---|---|" * len(BEHAVIOUR_COLUMNS)]
+        for r in (r for r in rows if r["task"] == task):
+            cols = []
+            for k, _ in BEHAVIOUR_COLUMNS:
+                v = r.get(k)
+                cols += ["–", "–"] if v is None else [fmt(v["first"]), f"{fmt(v['final_mean'])} ± {fmt(v['final_std'])}"]
+            md.append(f"| {METHOD_NAMES.get(r['method'], r['method'])} | {r['n']} | {fmt(r['eval_final'])} | "
+                      + " | ".join(cols) + " |")
+    if not rows:
+        md += ["", "(no finished cell logged its exploration metrics)"]
+    md.append(footer)
+    write_md_and_json(paths[0], md, paths[1], preset, student, {"build_commit": build_commit, "rows": rows})
+    return paths
+
+
+# ---------------------------------------------------------------------------------------------- coverage
+
+COVERAGE_GROUPS = (("teacher", "teacher (Meta's D0)"), ("student", "student (Meta's D1)"), ("ddpg", "noise baseline"))
+
+
+def coverage_rows(results: dict, tasks: Sequence[str], baseline: str = BASELINE) -> dict:
+    """State coverage as numbers (``stats.COVERAGE_DEFINITION``) for every task whose Meta (independent) and
+    ``baseline`` cells stored ``visits.npz`` (the states of Figure 4): per group (teacher, student, the
+    baseline; early and late) the occupied cells, the k-NN spread and the distance to the student's states,
+    each a mean over seeds with its bootstrap interval; and per task and phase the comparisons Figure 4 is
+    read for: teacher − baseline (occupied cells, spread; independent seeds) and the teacher's distance to
+    the student's states − the student's own (paired by seed: the same runs). ``{"rows": [...],
+    "comparisons": [...]}``."""
+    from sklearn.decomposition import PCA
+
+    from experiments.build import figures
+    from experiments.build.cells import thin_visits
+    from experiments.build.stats import (COVERAGE_K, bootstrap_difference, bootstrap_mean, knn_distance,
+                                         nearest_distance, occupied_fraction)
+
+    out = {"rows": [], "comparisons": []}
+    for task in tasks:
+        a, b = results.get((task, META)), results.get((task, baseline))
+        paths = [None if r is None else os.path.join(r.path, "visits.npz") for r in (a, b)]
+        if None in paths or not all(os.path.exists(p) for p in paths):
+            continue
+        with np.load(paths[0]) as va, np.load(paths[1]) as vb:
+            per_seed = figures.visitation_per_seed(thin_visits(dict(va)), thin_visits(dict(vb)))
+        per_seed = {k: [x for x in v if len(x)] for k, v in per_seed.items()}
+        sizes = [len(x) for v in per_seed.values() for x in v]
+        if not sizes or min(sizes) <= COVERAGE_K or not per_seed[("late", "student")]:
+            continue
+        n, rng = min(sizes), np.random.default_rng(0)
+        per_seed = {k: [figures.subsample(x, n, rng) for x in v] for k, v in per_seed.items()}
+        pooled = np.concatenate([x for v in per_seed.values() for x in v], 0)
+        mu, sd = pooled.mean(0), pooled.std(0)
+        sd = np.where(sd > 1e-8, sd, 1.0)
+        z = {k: [(x - mu) / sd for x in v] for k, v in per_seed.items()}
+        pca = PCA(n_components=2, random_state=0).fit((pooled - mu) / sd)
+        proj = pca.transform((pooled - mu) / sd)
+        low, high = np.percentile(proj, 1, axis=0), np.percentile(proj, 99, axis=0)
+        values = {}
+        for (when, who), xs in z.items():
+            if not xs:
+                continue
+            students = z[(when, "student")]
+            values[(when, who)] = {
+                "occupied": [occupied_fraction(pca.transform(x), low, high) for x in xs],
+                "spread": [knn_distance(x) for x in xs],
+                "to_student": ([knn_distance(x, 1) for x in xs] if who == "student" else
+                               [nearest_distance(x, students[i % len(students)]) for i, x in enumerate(xs)])}
+            out["rows"].append({"task": task, "phase": when, "group": who, "seeds": len(xs), "states_per_seed": n,
+                                **{m: dict(zip(("mean", "lo", "hi"), bootstrap_mean(v)))
+                                   for m, v in values[(when, who)].items()}})
+        for when in ("early", "late"):
+            t, d, st = values.get((when, "teacher")), values.get((when, "ddpg")), values.get((when, "student"))
+            if t is None:
+                continue
+            comps = []
+            if d is not None:
+                comps += [("occupied", "teacher − noise baseline", bootstrap_difference(t["occupied"], d["occupied"])),
+                          ("spread", "teacher − noise baseline", bootstrap_difference(t["spread"], d["spread"]))]
+            if st is not None and len(st["to_student"]) == len(t["to_student"]):
+                paired = np.asarray(t["to_student"]) - np.asarray(st["to_student"])
+                comps.append(("to_student", "teacher − student (paired by seed)", bootstrap_mean(paired)))
+            for measure, what, (diff, lo, hi) in comps:
+                out["comparisons"].append({"task": task, "phase": when, "measure": measure, "comparison": what,
+                                           "difference": diff, "lo": lo, "hi": hi,
+                                           "reading": "higher" if lo > 0 else "lower" if hi < 0 else "no clear difference"})
+    return out
+
+
+def write_coverage(coverage: dict, out_dir: str, footer: str, preset: str, baseline: str,
+                   build_commit: str | None = None, student: str = "ddpg") -> list[str]:
+    """coverage.md and coverage.json from ``coverage_rows``; returns the paths (none when no task has both
+    visitation samples)."""
+    from experiments.build.stats import COVERAGE_DEFINITION
+
+    if not coverage["rows"]:
+        return []
+    paths = [os.path.join(out_dir, "coverage.md"), os.path.join(out_dir, "coverage.json")]
+    names = dict(COVERAGE_GROUPS, ddpg=METHOD_NAMES.get(baseline, baseline))
+    measures = {"occupied": "occupied cells", "spread": "5-NN spread", "to_student": "distance to the student"}
+    ci = lambda e: f"{fmt(e['mean'], 3)} [{fmt(e['lo'], 3)}, {fmt(e['hi'], 3)}]"
+    md = [f"# State coverage of the visited states ({grid_label(preset, student)})", "",
+          "The numbers behind the state-visitation figures (`visitation_<task>.png`, the paper's Figure 4): how "
+          "much of the state space each explorer's data covers and how far the teacher's states lie from the "
+          "student's, from the same stored samples (the first and the latest states each seed visited).", "",
+          f"- {COVERAGE_DEFINITION}.",
+          "- comparisons: teacher − noise baseline (independent runs: each group's seeds resampled on their own) "
+          "and the teacher's distance to the student's states − the student's own (the same runs: paired by "
+          "seed); 'higher' / 'lower' where the 95% interval excludes 0."]
+    for task in dict.fromkeys(r["task"] for r in coverage["rows"]):
+        rows = [r for r in coverage["rows"] if r["task"] == task]
+        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
+               f"{rows[0]['states_per_seed']} states per seed and group.", "",
+               "| phase | group | seeds | " + " | ".join(measures.values()) + " |", "|---|---|---|---|---|---|"]
+        for r in rows:
+            md.append(f"| {r['phase']} | {names[r['group']]} | {r['seeds']} | "
+                      + " | ".join(ci(r[m]) for m in measures) + " |")
+        comps = [c for c in coverage["comparisons"] if c["task"] == task]
+        md += ["", "| phase | measure | comparison | difference [95% CI] | reading |", "|---|---|---|---|---|"]
+        for c in comps:
+            md.append(f"| {c['phase']} | {measures[c['measure']]} | {c['comparison']} | "
+                      f"{fmt(c['difference'], 3)} [{fmt(c['lo'], 3)}, {fmt(c['hi'], 3)}] | {c['reading']} |")
+    md.append(footer)
+    write_md_and_json(paths[0], md, paths[1], preset, student,
+                       {"baseline": baseline, "definition": COVERAGE_DEFINITION, "build_commit": build_commit,
+                        **coverage})
+    return paths
+
+
+# ---------------------------------------------------------------------------------------------- README
