@@ -287,7 +287,8 @@ def _run(session: Session, cfg: config_lib.Config, a: dict, out: str, resume: bo
                     if cfg.explorer_spec.cycle_metrics and main_process else None)
     tb_writer = None
     if tensorboard and main_process:
-        tb_writer = session.keep(tb_events.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle))
+        tb_writer = session.keep(tb_events.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle,
+                                                             cycle_prefix=f"{cfg.run.method}/"))
         if resume:  # the JSONL files end at the checkpoint now (truncated above)
             cycles_path = os.path.join(out, "cycles.jsonl")
             tb_writer.resume(runfiles.read_jsonl(os.path.join(out, "metrics.jsonl")),

@@ -73,16 +73,16 @@ def assert_events_match_jsonl(out, num_seeds, chunks):
         assert [r["env_steps"] for r in mine] == steps
         # The evaluation return at each env step, exactly (it is a float32 in the program).
         assert events["eval_return"] == [(r["env_steps"], r["eval_return"]) for r in mine]
-        teacher = {k: v for k, v in events.items() if k.startswith("teacher/")}
+        teacher = {k: v for k, v in events.items() if k.startswith("meta/")}
         assert events.keys() - teacher.keys() >= {"eval_return", "critic_loss", "meta_reward", "updates"}
         want = _expected(mine, lambda r: r["env_steps"])
         assert {k: v for k, v in events.items() if k not in teacher} == want  # every number, once, in order
         # The teacher's per-cycle metrics, at the env steps stored by the end of each cycle.
         mine_cycles = [r for r in cycles if r["seed"] == seed]
         assert [r["cycle"] for r in mine_cycles] == list(range(chunks * 300 // STEPS_PER_CYCLE))
-        assert set(teacher) == {f"teacher/{k}" for k in strategy.explorer("meta").cycle_metrics}
-        assert teacher == _expected(mine_cycles, lambda r: (r["cycle"] + 1) * STEPS_PER_CYCLE, "teacher/")
-        assert [s for s, _ in teacher["teacher/meta_reward"]][1::2] == steps  # a chunk's last cycle ends at its eval
+        assert set(teacher) == {f"meta/{k}" for k in strategy.explorer("meta").cycle_metrics}
+        assert teacher == _expected(mine_cycles, lambda r: (r["cycle"] + 1) * STEPS_PER_CYCLE, "meta/")
+        assert [s for s, _ in teacher["meta/meta_reward"]][1::2] == steps  # a chunk's last cycle ends at its eval
 
 
 def test_tensorboard_holds_the_jsonl_numbers_per_seed_and_a_resume_appends_once(tmp_path):
@@ -122,9 +122,9 @@ def test_a_resume_drops_events_past_the_checkpoint_and_writes_the_rows_they_lack
     def check(folder, chunks):
         for seed in range(2):
             events = read_events(os.path.join(folder, f"seed_{seed}"))
-            assert set(events) == {"eval_return", "wall_time", "teacher/meta_reward"}  # None, str, bool skipped
+            assert set(events) == {"eval_return", "wall_time", "cycle/meta_reward"}  # None, str, bool skipped
             assert events["eval_return"] == [(300 * (c + 1), c + 0.5 * seed) for c in range(chunks)]
-            assert events["teacher/meta_reward"] == [((k + 1) * STEPS_PER_CYCLE, 0.25 * k - seed)
+            assert events["cycle/meta_reward"] == [((k + 1) * STEPS_PER_CYCLE, 0.25 * k - seed)
                                                      for k in range(2 * chunks)]
             assert tb_events.read_tensorboard_scalars(os.path.join(folder, f"seed_{seed}")) == events
 
@@ -157,6 +157,18 @@ def test_a_resume_drops_events_past_the_checkpoint_and_writes_the_rows_they_lack
     w.resume(rows[:4], cycles[:8], done_steps=600)
     w.close()
     check(never, chunks=2)
+    # Written before cycle rows took their explorer's name ('teacher/'): resumed, nothing is written twice.
+    old = str(tmp_path / "old")
+    w = tb_events.TensorBoardWriter(old, STEPS_PER_CYCLE, cycle_prefix="teacher/")
+    w.write(rows[:4], cycles[:8])
+    w.close()
+    w = tb_events.TensorBoardWriter(old, STEPS_PER_CYCLE)
+    w.resume(rows[:4], cycles[:8], done_steps=600)
+    w.close()
+    events = read_events(os.path.join(old, "seed_0"))
+    assert "cycle/meta_reward" not in events and len(events["teacher/meta_reward"]) == 4
+    with pytest.raises(ValueError, match="one name and a slash"):
+        tb_events.TensorBoardWriter(old, STEPS_PER_CYCLE, cycle_prefix="a/b/")
 
 
 def test_missing_tensorboardx_exits_2_with_one_line_before_writing(tmp_path, monkeypatch, capsys):

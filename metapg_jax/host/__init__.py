@@ -6,8 +6,8 @@ imports this package (``tests/test_imports.py``):
 * ``runfiles``: atomic JSON, JSON lines, NumPy archives;
 * ``metric_rows``: a chunk's metrics as rows, training time, learning curves and their plot;
 * ``terminal``: the progress bar and peak memory;
-* ``tb_events``: TensorBoard event files (a cycle row's metrics are tagged ``teacher/<name>``, the prefix
-  they have always had);
+* ``tb_events``: TensorBoard event files (a cycle row's metrics are tagged ``<explorer>/<name>``, e.g.
+  ``meta/meta_reward``; runs written before that tagged them ``teacher/`` and resume as they are);
 * ``provenance``: commit, uncommitted changes, machine;
 * ``compile_cache``: the persistent XLA compilation cache;
 * ``checkpoint``: orbax checkpoints of the seed-batched training state;

@@ -27,7 +27,8 @@ class TensorBoardWriter:
 
     Seed ``i`` writes to ``<folder>/seed_<i>/``, so TensorBoard shows the seeds as separate runs. Tags:
     each numeric field of a :func:`chunk_rows` row under its own name (``eval_return``, ``critic_loss``,
-    ...) at its ``env_steps``; each field of a :func:`cycle_rows` row as ``teacher/<name>`` at the env
+    ...) at its ``env_steps``; each field of a :func:`cycle_rows` row as ``<cycle_prefix><name>`` (the run
+    passes its explorer's name: ``meta/meta_reward``) at the env
     steps stored by the end of that cycle, ``(cycle + 1) * steps_per_cycle`` (every cycle stores exactly
     that many; ``config.validate``), so all curves share one x axis. The values are the rows' own, so
     TensorBoard shows the numbers of the JSONL files (as float32, the event format's scalar); None
@@ -39,13 +40,17 @@ class TensorBoardWriter:
     then its evaluation). tensorboardX is imported here, lazily: it is an optional extra.
     """
 
-    def __init__(self, folder: str, steps_per_cycle: int):
+    def __init__(self, folder: str, steps_per_cycle: int, cycle_prefix: str = "cycle/"):
         from tensorboardX.event_file_writer import EventsWriter
         from tensorboardX.proto import event_pb2, summary_pb2
 
         self._events_writer, self._event_pb2, self._summary_pb2 = EventsWriter, event_pb2, summary_pb2
         self.folder = folder
         self.steps_per_cycle = steps_per_cycle
+        if "/" not in cycle_prefix[:-1] and cycle_prefix.endswith("/"):
+            self.cycle_prefix = cycle_prefix
+        else:
+            raise ValueError(f"cycle_prefix must be one name and a slash, got {cycle_prefix!r}")
         self._writers: dict[int, Any] = {}
 
     def seed_folder(self, seed: int) -> str:
@@ -59,7 +64,7 @@ class TensorBoardWriter:
         """Appends the scalars of a batch of rows (any seeds), then flushes every seed's file."""
         events: dict[int, list] = {}
         for row in cycle_rows:  # first: a chunk's last cycle ends at its evaluation's step
-            events.setdefault(int(row["seed"]), []).append((self.cycle_step(row), "teacher/", row))
+            events.setdefault(int(row["seed"]), []).append((self.cycle_step(row), self.cycle_prefix, row))
         for row in metric_rows:
             events.setdefault(int(row["seed"]), []).append((int(row["env_steps"]), "", row))
         for seed, items in events.items():
@@ -84,7 +89,7 @@ class TensorBoardWriter:
             seeds |= {int(name[5:]) for name in os.listdir(self.folder)
                       if name.startswith("seed_") and name[5:].isdigit()}
         for seed in sorted(seeds):
-            last = {"": 0, "teacher/": 0}  # the latest step written, per kind of row
+            last = {"": 0, "cycle": 0}  # the latest step written, per kind of row
             for path in _event_files(self.seed_folder(seed)):
                 records, complete = _read_records(path)
                 kept = []
@@ -94,13 +99,14 @@ class TensorBoardWriter:
                         continue
                     kept.append(data)
                     for value in event.summary.value:
-                        kind = "teacher/" if value.tag.startswith("teacher/") else ""
+                        # Cycle rows' tags have a prefix (older runs: 'teacher/'), metric rows' none.
+                        kind = "cycle" if "/" in value.tag else ""
                         last[kind] = max(last[kind], int(event.step))
                 if len(kept) < len(records) or not complete:
                     _write_records_atomic(path, kept)
             self.write([r for r in metric_rows if int(r["seed"]) == seed and last[""] < r["env_steps"] <= done_steps],
                        [r for r in cycle_rows if int(r["seed"]) == seed
-                        and last["teacher/"] < self.cycle_step(r) <= done_steps])
+                        and last["cycle"] < self.cycle_step(r) <= done_steps])
 
     def _writer(self, seed: int):
         if seed not in self._writers:
