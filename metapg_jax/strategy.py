@@ -180,7 +180,8 @@ def load_builtins() -> None:
     _LOADED = True  # after every import: one that failed is tried again, not left half-registered
 
 
-# Names a strategy's group cannot take: the core groups and the other fields and methods of a config.
+# Names a strategy's group cannot take: the core groups and the other fields and methods of a config (written
+# out: config imports this module; tests/test_strategy.py checks the two agree).
 RESERVED = frozenset({"env", "run", "ddpg", "groups", "preset", "student", "replace", "explorer_spec",
                       "steps_per_cycle", "cycles_per_chunk", "num_chunks", "buffer_capacity", "episode_length"})
 

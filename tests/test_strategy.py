@@ -114,3 +114,10 @@ def test_no_generic_module_names_a_registered_strategy():
     assert _names_in(os.path.join(ROOT, "metapg_jax", "strategies", "meta.py"), names, groups)  # it sees meta's own
     found = {path: _names_in(os.path.join(ROOT, path), names, groups) for path in GENERIC}
     assert {path: where for path, where in found.items() if where} == {}
+
+
+def test_the_reserved_group_names_are_the_configs_own_names():
+    """strategy.RESERVED (a group may not take these) is written out because config imports strategy, not the
+    other way round; it must stay every field and public attribute of Config."""
+    names = {n for n in dir(config_lib.Config) if not n.startswith("_")}
+    assert strategy.RESERVED == names | {f.name for f in dataclasses.fields(config_lib.Config)}
