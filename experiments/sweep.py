@@ -40,6 +40,7 @@ import time
 import envs
 from experiments.training import args as training_args
 from experiments.training import memory
+from metapg_jax.config import current_name
 from metapg_jax.host import compile_cache, runner
 
 SWEEP_ARGS = ("env", "method", *training_args.FLAGS, "student", "preset", "seeds", "seed", "steps", "source",
@@ -78,7 +79,7 @@ def parse_grid(items: list[str]) -> dict[str, list[str]]:
     grid = {}
     for item in items:
         field, sep, values = item.partition("=")
-        field = field.strip()
+        field = current_name(field.strip())  # a field that moved is swept under its current name
         if not sep or not field:
             raise ValueError(f"--grid expects GROUP.FIELD=V1,V2,..., got {item!r}")
         if field in grid:
@@ -103,7 +104,7 @@ def plan(a: dict, grid: dict[str, list[str]]):
     from metapg_jax.config import to_dict
     from metapg_jax.sweep import get_field, set_fields, structural_fields
 
-    fixed = training_args.parse_overrides(a["overrides"])
+    fixed = {current_name(k): v for k, v in training_args.parse_overrides(a["overrides"]).items()}
     for field in grid:
         if field in fixed:
             raise ValueError(f"{field} is both swept (--grid) and fixed (--set)")

@@ -241,7 +241,7 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
         cfg = override(cfg, given)
     if overrides:
         cfg = override(cfg, overrides)
-    overrides = {_moved(k): v for k, v in overrides.items()}
+    overrides = {current_name(k): v for k, v in overrides.items()}
     cfg = explorer.derive(learner.derive(cfg, overrides), overrides)
     if "run.eval_every" not in overrides:
         target = min(spec.eval_every, max(cfg.steps_per_cycle, cfg.run.total_steps // 10))
@@ -250,7 +250,7 @@ def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "pape
     return cfg
 
 
-def _moved(dotted: str) -> str:
+def current_name(dotted: str) -> str:
     """The current name of a dotted field (a field that moved out of a strategy's group keeps its old name)."""
     return strategy.moved_fields().get(dotted, dotted)
 
@@ -259,7 +259,7 @@ def override(cfg: Config, overrides: dict[str, Any]) -> Config:
     """Returns ``cfg`` with dotted fields replaced, e.g. ``{'ddpg.tau': '0.005'}``."""
     groups = {*CORE_GROUPS, *(k for k, _ in cfg.groups), *strategy.groups()}
     for dotted, value in overrides.items():
-        dotted = _moved(dotted)
+        dotted = current_name(dotted)
         parts = dotted.split(".")
         if len(parts) == 1 and parts[0] in ("preset", "student"):
             cfg = dataclasses.replace(cfg, **{parts[0]: _coerce(value, str, dotted)})

@@ -76,6 +76,7 @@ def test_fields_that_change_the_program_are_found_and_split_into_programs(tmp_pa
     (["--grid", "meta.lr=1e-3,,1e-4"], "empty value"),
     (["--grid", "meta.lr=fast,slow"], "meta.lr"),
     (["--grid", "meta.lr=1e-3,1e-3"], "given twice"),
+    (["--grid", "meta.visit_samples=8,16", "--grid", "run.visit_samples=8,32"], "names run.visit_samples twice"),
     (["--grid", "run.eval_every=300,600"], "both swept"),
     (["--grid", "run.method=ddpg,meta"], "cannot be overridden"),
     (["--grid", "meta.lr=-1,1e-3"], "meta.lr"),
