@@ -99,7 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", dest="overrides", action="append", default=None, metavar="GROUP.FIELD=VALUE",
                    help="override any config field, e.g. --set ddpg.tau=0.005 --set run.eval_every=3000 "
                         "(groups: env, run, ddpg, and each strategy's own: noise, meta, td3, a plug-in's; see "
-                        "metapg_jax/config.py and metapg_jax/strategies/)")
+                        "metapg_jax/config/ and metapg_jax/strategies/)")
     p.add_argument("--out", default=None, help="output folder (default runs/<env>-<method>-<preset>[-mujoco]-s<seed>)")
     p.add_argument("--overwrite", action="store_true", help="replace an existing output folder")
     p.add_argument("--resume", default=None, metavar="RUN_DIR",

@@ -79,7 +79,8 @@ def test_a_stored_group_nobody_declares_is_refused_and_moved_fields_are_read_in_
 # The modules that run every strategy alike: the pure library's core, the host side, the env registry and the
 # generic commands. The strategies' own files, and the experiments about one of them (the teacher's screen and
 # ablation, Table 2's grid, the benchmarks), name them by design.
-GENERIC = ["metapg_jax/config.py", "metapg_jax/loop.py", "metapg_jax/train.py", "metapg_jax/sweep.py",
+GENERIC = ["metapg_jax/config/__init__.py", "metapg_jax/config/schema.py", "metapg_jax/config/fields.py",
+           "metapg_jax/config/build.py", "metapg_jax/loop.py", "metapg_jax/train.py", "metapg_jax/sweep.py",
            "metapg_jax/seeds.py", "metapg_jax/strategy.py", "metapg_jax/actor_critic.py", "metapg_jax/rollout.py",
            "metapg_jax/evaluate.py", "metapg_jax/replay.py", "metapg_jax/visits.py", "envs/__init__.py",
            "experiments/run.py", "experiments/sweep.py", "experiments/export.py", "experiments/training/args.py",
