@@ -12,8 +12,50 @@ import numpy as np
 
 from experiments.build.cells import BEHAVIOUR_METRICS
 from experiments.build.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, grid_label
-from experiments.build.stats import final_returns, fmt, mean_std
+from experiments.build.stats import BOOTSTRAP_REPS, BOOTSTRAP_SEED, final_returns, fmt, mean_std
 from experiments.build.tables import write_md_and_json
+
+# State coverage as numbers (the coverage table): the occupied cells of a grid over a 2-D projection, the
+# k-NN spread, the distance to the student's states.
+COVERAGE_CELLS = 20   # a 20 x 20 grid over the task's 2-D PCA projection
+COVERAGE_K = 5        # the k of the k-NN spread
+COVERAGE_DEFINITION = (
+    "per task, every stored state (teacher, student, DDPG; early and late; every seed; the same number of states "
+    "per seed and group, evenly thinned) is standardised with the pooled mean and std per dimension; occupied "
+    "cells: the fraction of a {cells} x {cells} grid over a 2-D PCA projection fitted once per task on the pooled "
+    "states (its box: the pooled 1st-99th percentiles per axis, states outside counted in the edge cells) that "
+    "a seed's states fall in; {k}-NN spread: a seed's mean distance from each state to its {k}th nearest "
+    "neighbour among its own states; distance to the student: a seed's mean distance from each state to the "
+    "nearest state of the student's (Meta's D1) of the same seed index and phase (for the student itself: to its "
+    "nearest other state). Mean over seeds with a 95% percentile bootstrap over seeds ({reps:,} replicates, "
+    "seed {seed})").format(cells=COVERAGE_CELLS, k=COVERAGE_K, reps=BOOTSTRAP_REPS, seed=BOOTSTRAP_SEED)
+
+
+def occupied_fraction(xy: np.ndarray, low: np.ndarray, high: np.ndarray, cells: int = COVERAGE_CELLS) -> float:
+    """The fraction of a ``cells`` x ``cells`` grid over the box [low, high] that the 2-D points ``xy`` occupy
+    (points outside the box count in the edge cells)."""
+    xy = np.asarray(xy, np.float64)
+    idx = np.clip(np.floor((xy - low) / np.where(high > low, high - low, 1.0) * cells), 0, cells - 1).astype(int)
+    return float(np.unique(idx[:, 0] * cells + idx[:, 1]).size / cells ** 2)
+
+
+def knn_distance(x: np.ndarray, k: int = COVERAGE_K) -> float:
+    """The mean distance from each row of ``x`` to its ``k``-th nearest other row."""
+    from scipy.spatial import cKDTree
+
+    x = np.asarray(x, np.float64)
+    if x.shape[0] <= k:
+        raise ValueError(f"{x.shape[0]} states: a {k}-NN distance needs more than {k}")
+    dist, _ = cKDTree(x).query(x, k=k + 1)  # the first neighbour is the state itself
+    return float(dist[:, k].mean())
+
+
+def nearest_distance(x: np.ndarray, y: np.ndarray) -> float:
+    """The mean distance from each row of ``x`` to the nearest row of ``y``."""
+    from scipy.spatial import cKDTree
+
+    dist, _ = cKDTree(np.asarray(y, np.float64)).query(np.asarray(x, np.float64), k=1)
+    return float(dist.mean())
 
 
 BEHAVIOUR_COLUMNS = tuple(zip(BEHAVIOUR_METRICS, ("exploration-episode return", "teacher log-std",
@@ -93,7 +135,7 @@ COVERAGE_GROUPS = (("teacher", "teacher (Meta's D0)"), ("student", "student (Met
 
 
 def coverage_rows(results: dict, tasks: Sequence[str], baseline: str = BASELINE) -> dict:
-    """State coverage as numbers (``stats.COVERAGE_DEFINITION``) for every task whose Meta (independent) and
+    """State coverage as numbers (``COVERAGE_DEFINITION``) for every task whose Meta (independent) and
     ``baseline`` cells stored ``visits.npz`` (the states of Figure 4): per group (teacher, student, the
     baseline; early and late) the occupied cells, the k-NN spread and the distance to the student's states,
     each a mean over seeds with its bootstrap interval; and per task and phase the comparisons Figure 4 is
@@ -104,8 +146,7 @@ def coverage_rows(results: dict, tasks: Sequence[str], baseline: str = BASELINE)
 
     from experiments.build import figures
     from experiments.build.cells import thin_visits
-    from experiments.build.stats import (COVERAGE_K, bootstrap_difference, bootstrap_mean, knn_distance,
-                                         nearest_distance, occupied_fraction)
+    from experiments.build.stats import bootstrap_difference, bootstrap_mean
 
     out = {"rows": [], "comparisons": []}
     for task in tasks:
@@ -163,7 +204,6 @@ def write_coverage(coverage: dict, out_dir: str, footer: str, preset: str, basel
                    build_commit: str | None = None, student: str = "ddpg") -> list[str]:
     """coverage.md and coverage.json from ``coverage_rows``; returns the paths (none when no task has both
     visitation samples)."""
-    from experiments.build.stats import COVERAGE_DEFINITION
 
     if not coverage["rows"]:
         return []

@@ -344,47 +344,7 @@ def judge_family(pairs: Sequence[tuple[Sequence[float], Sequence[float], float |
     return out
 
 
-# -- state coverage of the visited states (the behaviour artefacts' numbers behind Figure 4) -------------------
-
-COVERAGE_CELLS = 20   # a 20 x 20 grid over the task's 2-D PCA projection
-COVERAGE_K = 5        # the k of the k-NN spread
-COVERAGE_DEFINITION = (
-    "per task, every stored state (teacher, student, DDPG; early and late; every seed; the same number of states "
-    "per seed and group, evenly thinned) is standardised with the pooled mean and std per dimension; occupied "
-    "cells: the fraction of a {cells} x {cells} grid over a 2-D PCA projection fitted once per task on the pooled "
-    "states (its box: the pooled 1st-99th percentiles per axis, states outside counted in the edge cells) that "
-    "a seed's states fall in; {k}-NN spread: a seed's mean distance from each state to its {k}th nearest "
-    "neighbour among its own states; distance to the student: a seed's mean distance from each state to the "
-    "nearest state of the student's (Meta's D1) of the same seed index and phase (for the student itself: to its "
-    "nearest other state). Mean over seeds with a 95% percentile bootstrap over seeds ({reps:,} replicates, "
-    "seed {seed})").format(cells=COVERAGE_CELLS, k=COVERAGE_K, reps=BOOTSTRAP_REPS, seed=BOOTSTRAP_SEED)
-
-
-def occupied_fraction(xy: np.ndarray, low: np.ndarray, high: np.ndarray, cells: int = COVERAGE_CELLS) -> float:
-    """The fraction of a ``cells`` x ``cells`` grid over the box [low, high] that the 2-D points ``xy`` occupy
-    (points outside the box count in the edge cells)."""
-    xy = np.asarray(xy, np.float64)
-    idx = np.clip(np.floor((xy - low) / np.where(high > low, high - low, 1.0) * cells), 0, cells - 1).astype(int)
-    return float(np.unique(idx[:, 0] * cells + idx[:, 1]).size / cells ** 2)
-
-
-def knn_distance(x: np.ndarray, k: int = COVERAGE_K) -> float:
-    """The mean distance from each row of ``x`` to its ``k``-th nearest other row."""
-    from scipy.spatial import cKDTree
-
-    x = np.asarray(x, np.float64)
-    if x.shape[0] <= k:
-        raise ValueError(f"{x.shape[0]} states: a {k}-NN distance needs more than {k}")
-    dist, _ = cKDTree(x).query(x, k=k + 1)  # the first neighbour is the state itself
-    return float(dist[:, k].mean())
-
-
-def nearest_distance(x: np.ndarray, y: np.ndarray) -> float:
-    """The mean distance from each row of ``x`` to the nearest row of ``y``."""
-    from scipy.spatial import cKDTree
-
-    dist, _ = cKDTree(np.asarray(y, np.float64)).query(np.asarray(x, np.float64), k=1)
-    return float(dist.mean())
+# -- bootstrap intervals of a mean and of a difference of means over seeds (the coverage table's) --------------
 
 
 def bootstrap_mean(values: Sequence[float], level: float = 0.95, reps: int = BOOTSTRAP_REPS,
