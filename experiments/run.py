@@ -60,6 +60,7 @@ from experiments.training.args import (FLAGS, RUN_ARGS, check_devices, config_fr
 from experiments.training.finish import finalize, record_extension
 from experiments.training.memory import abstract_keys, check_fits, state_bytes
 
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="python -m experiments.run",

@@ -215,7 +215,8 @@ def main(argv: list[str] | None = None) -> int:
                          for k, s in enumerate(settings)],
             "groups": groups, "config": to_dict(configs[0]), **provenance.record()})
     n = len(settings) * a["seeds"]
-    print(f"sweep of {len(settings)} settings x {a['seeds']} seeds = {n} runs of {training_args.run_label(configs[0])} "
+    label = training_args.run_label(configs[0])
+    print(f"sweep of {len(settings)} settings x {a['seeds']} seeds = {n} runs of {label} "
           f"({configs[0].run.total_steps:,} env steps each) in {len(groups)} program(s); output {out}", flush=True)
     for g, group in enumerate(groups):
         status = run_group(out, g, group, settings, configs, env, a, args,
