@@ -55,8 +55,8 @@ from metapg_jax.host import compile_cache
 from metapg_jax.host.processes import barrier, maybe_initialize_distributed, to_host
 from metapg_jax.host.runner import Session, restart_command
 
-from experiments.training.args import (FLAGS, RUN_ARGS, check_devices, config_from_run_args, physics_label,
-                                       resolved_run_args, resume_args, run_args, run_label)
+from experiments.training.args import (RUN_ARGS, check_devices, config_from_run_args, flags, physics_label,
+                                       preload_plugins, resolved_run_args, resume_args, run_args, run_label)
 from experiments.training.finish import finalize, record_extension
 from experiments.training.memory import abstract_keys, check_fits, state_bytes
 
@@ -71,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", default=None,
                    help=f"the explorer (default {d['method']}): {described(strategy.explorers())}; or one a "
                         f"--plugin registers")
-    for flag, (owner, field) in FLAGS.items():
+    for flag, (owner, field) in flags().items():  # a plug-in's too, once preload_plugins imported it
         p.add_argument(f"--{flag}", default=None,
                        help=f"--method={owner} only: sets {field} (the same as --set {field}=V)")
     p.add_argument("--student", default=None,
@@ -160,6 +160,11 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        preload_plugins(argv)  # a plug-in's shortcut is then an option of the parser
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     args = build_parser().parse_args(argv)
     try:
         maybe_initialize_distributed()

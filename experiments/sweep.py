@@ -43,15 +43,17 @@ from experiments.training import memory
 from metapg_jax.config import current_name
 from metapg_jax.host import compile_cache, runner
 
-SWEEP_ARGS = ("env", "method", *training_args.FLAGS, "student", "preset", "seeds", "seed", "steps", "source",
-              "physics", "overrides", "plugins")
+def sweep_args() -> tuple[str, ...]:
+    """The run arguments a sweep takes (every explorer's shortcut, a preloaded plug-in's too)."""
+    return ("env", "method", *training_args.flags(), "student", "preset", "seeds", "seed", "steps", "source",
+            "physics", "overrides", "plugins")
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m experiments.sweep",
                                 description="Run a grid of config settings x seeds as one compiled program per "
                                             "group of shape-compatible settings.")
-    for name in ("--env", "--method", *(f"--{flag}" for flag in training_args.FLAGS), "--student", "--preset",
+    for name in ("--env", "--method", *(f"--{flag}" for flag in training_args.flags()), "--student", "--preset",
                  "--source", "--physics"):
         p.add_argument(name, default=None, help=f"as experiments.run {name}")
     p.add_argument("--seeds", type=int, default=None, help="seeds per setting (default 8)")
@@ -167,7 +169,7 @@ def default_out(a: dict) -> str:
 def prepare(args) -> tuple[dict, dict, str]:
     """(run args, grid, out) from the command line or, with --resume, from the stored sweep.json."""
     if args.resume:
-        given = [k for k in SWEEP_ARGS if getattr(args, k) is not None] + (["grid"] if args.grid else [])
+        given = [k for k in sweep_args() if getattr(args, k) is not None] + (["grid"] if args.grid else [])
         if given:
             raise ValueError(f"--resume continues the stored sweep; do not give {', '.join('--' + k for k in given)}")
         path = os.path.join(args.resume, "sweep.json")
@@ -175,7 +177,7 @@ def prepare(args) -> tuple[dict, dict, str]:
             raise ValueError(f"--resume {args.resume}: no sweep.json there (not a sweep folder)")
         stored = json.load(open(path))
         return stored["run_args"], stored["grid"], args.resume
-    a = training_args.run_args(argparse.Namespace(**{k: getattr(args, k) for k in SWEEP_ARGS}))
+    a = training_args.run_args(argparse.Namespace(**{k: getattr(args, k) for k in sweep_args()}))
     # Stored resolved (never 'auto'), so a resume on another backend keeps the engine.
     a["physics"] = envs.resolve_physics(a["env"], a["source"], a["physics"])
     grid = parse_grid(args.grid)
@@ -189,6 +191,11 @@ def prepare(args) -> tuple[dict, dict, str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    try:
+        training_args.preload_plugins(argv)  # a plug-in's shortcut is then an option of the parser
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     args = build_parser().parse_args(argv)
     try:
         if args.checkpoint_minutes <= 0:

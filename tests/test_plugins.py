@@ -59,7 +59,8 @@ PLUGIN = textwrap.dedent('''
     strategy.register_explorer(
         "uniform", lambda config: UniformExplorer(config.uniform), group=UniformConfig, validate=_validate,
         steps_per_cycle=lambda config: config.uniform.cycle_steps, cycle_metrics=("largest_action",),
-        cycle_panels=(("largest_action", "largest |action|"),), label=lambda config: f"x{config.uniform.scale}")
+        cycle_panels=(("largest_action", "largest |action|"),), label=lambda config: f"x{config.uniform.scale}",
+        flag=("scale", "scale"))
 
 
     @struct.dataclass
@@ -124,14 +125,14 @@ def test_a_plugin_explorer_and_student_train_through_the_cli_and_resume(tmp_path
     plugin.write_text(PLUGIN)
     out = str(tmp_path / "run")
     argv = [*TINY, f"--plugin={plugin}", "--method=uniform", "--student=counting", "--checkpoint-every=1",
-            "--set", "uniform.cycle_steps=30", "--set", "uniform.scale=0.5"]
+            "--set", "uniform.cycle_steps=30", "--scale=0.5"]  # its shortcut: an option once --plugin imports it
     assert run.main([*argv, "--set", "uniform.scale=-1", "--out", str(tmp_path / "bad")]) == 2  # its own check
     assert not os.path.exists(tmp_path / "bad")
     assert run.main([*argv, "--steps=600", "--out", out]) == 0
     stored = json.load(open(os.path.join(out, "config.json")))
     assert stored["config"]["student"] == "counting" and stored["config"]["run"]["method"] == "uniform"
     assert stored["config"]["uniform"] == {"scale": 0.5, "cycle_steps": 30}  # its group, with the override
-    assert stored["run_args"]["plugins"] == [str(plugin)]
+    assert stored["run_args"]["plugins"] == [str(plugin)] and stored["run_args"]["scale"] == "0.5"
     rows = _rows(out)
     assert {r["chunk"] for r in rows} == {0, 1} and all(np.isfinite(r["eval_return"]) for r in rows)
     assert all(r["own_updates"] > 0 for r in rows)                         # the student's own metric

@@ -15,14 +15,39 @@ import sys
 from metapg_jax import config as config_lib
 from metapg_jax import strategy
 
-# The explorers' command-line shortcuts for one field of their group (``--teacher``, ``--noise``;
-# metapg_jax.strategy.flags): {option: (explorer, dotted field)}.
+# The built-in explorers' command-line shortcuts for one field of their group (``--teacher``, ``--noise``;
+# metapg_jax.strategy.flags): {option: (explorer, dotted field)}. ``flags()`` adds an imported plug-in's.
 FLAGS = strategy.flags()
 # Arguments that define the run; stored in config.json so --resume can rebuild and compare it. The main job
-# trains the paper's teacher: --method defaults to meta.
+# trains the paper's teacher: --method defaults to meta. ``defaults()`` adds an imported plug-in's shortcut.
 RUN_ARGS = {"env": "pendulum", "method": "meta", **{flag: None for flag in FLAGS}, "preset": "paper",
             "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "auto",
             "student": "ddpg", "overrides": [], "plugins": []}
+
+
+def flags() -> dict[str, tuple[str, str]]:
+    """Every registered explorer's shortcut, a plug-in's too once ``import_plugins`` has imported it."""
+    return strategy.flags()
+
+
+def defaults() -> dict:
+    """``RUN_ARGS`` and, after them, the shortcut of every plug-in imported so far (default None)."""
+    return {**RUN_ARGS, **{flag: None for flag in flags() if flag not in RUN_ARGS}}
+
+
+def preload_plugins(argv: list[str] | None) -> None:
+    """Imports the plug-ins a command line names (``--plugin``, or a ``--resume``d run's stored ones) before its
+    parser is built, so that a plug-in's shortcut is an option of it; raises ``ValueError`` (one line)."""
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--plugin", dest="plugins", action="append", default=[])
+    pre.add_argument("--resume", default=None)
+    known, _ = pre.parse_known_args(sys.argv[1:] if argv is None else argv)
+    names = list(known.plugins)
+    path = os.path.join(known.resume, "config.json") if known.resume else None
+    if path and os.path.exists(path):
+        with open(path) as f:
+            names += json.load(f).get("run_args", {}).get("plugins") or []
+    import_plugins(names)
 
 
 def parse_overrides(items: list[str]) -> dict[str, str]:
@@ -38,9 +63,10 @@ def parse_overrides(items: list[str]) -> dict[str, str]:
 def run_args(args: argparse.Namespace, stored: dict | None = None) -> dict:
     """The run-defining arguments: given ones, else the stored run's (on resume), else the defaults."""
     # (A stored run older than an argument has the argument's default.)
-    base = dict(RUN_ARGS if stored is None else {**RUN_ARGS, **stored})
-    for k in RUN_ARGS:
-        v = getattr(args, k)
+    known = defaults()
+    base = dict(known if stored is None else {**known, **stored})
+    for k in known:
+        v = getattr(args, k, None)  # a command without the option (a sweep's shortcut of no plug-in)
         if v is not None:
             # --set on a resumed run adds to the stored overrides (and must not change anything).
             base[k] = list(base["overrides"]) + v if k == "overrides" else v
@@ -85,13 +111,14 @@ def config_from_run_args(a: dict) -> config_lib.Config:
         raise ValueError(f"--steps must be positive, got {a['steps']}")
     if not 0 <= a["seed"] < 2 ** 32:
         raise ValueError(f"--seed must be in [0, 2**32), got {a['seed']}")
-    for flag, (owner, _) in FLAGS.items():
+    shortcuts = flags()
+    for flag, (owner, _) in shortcuts.items():
         if a.get(flag) is not None and a["method"] != owner:
             raise ValueError(f"--{flag} applies to --method={owner} only")
     cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], steps=a["steps"],
                                  source=a["source"], overrides=parse_overrides(a["overrides"]),
                                  physics=a["physics"], student=a["student"],
-                                 **{flag: a.get(flag) for flag in FLAGS})
+                                 **{flag: a.get(flag) for flag in shortcuts})
     return config_lib.validate(cfg)
 
 
