@@ -53,10 +53,11 @@ from metapg_jax import config as config_lib
 from metapg_jax import strategy
 from metapg_jax.host import compile_cache
 from metapg_jax.host.processes import barrier, maybe_initialize_distributed, to_host
-from metapg_jax.host.runner import Session, restart_command
+from metapg_jax.host.runner import ChunkLoop, restart_command
 
-from experiments.training.args import (RUN_ARGS, check_devices, config_from_run_args, flags, physics_label,
-                                       preload_plugins, resolved_run_args, resume_args, run_args, run_label)
+from experiments.training.args import (RUN_ARGS, check_devices, check_new_out, config_from_run_args, flags,
+                                       physics_label, preload_plugins, resolved_run_args, resume_args, run_args,
+                                       run_label)
 from experiments.training.finish import finalize, record_extension
 from experiments.training.memory import abstract_keys, check_fits, state_bytes
 
@@ -150,11 +151,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
         student = "" if cfg.student == RUN_ARGS["student"] else f"-{cfg.student}"
         out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}{student}-{cfg.preset}{engine}"
                                                f"-s{a['seed']}")
-        if os.path.exists(out) and not os.path.isdir(out):
-            raise ValueError(f"--out {out} is a file, not a folder")
-        if os.path.exists(out) and os.listdir(out) and not args.overwrite:
-            raise ValueError(f"output folder {out} exists; pass --resume {out} to continue it, "
-                             f"--overwrite to replace it, or --out elsewhere")
+        check_new_out(out, args.overwrite)
     check_devices(a["seeds"])
     return cfg, a, out, bool(args.resume), extend_from
 
@@ -206,16 +203,16 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
         done = saved_steps(os.path.join(out, "checkpoints"))
         return done[-1] if done else None
 
-    session = Session("the run", checkpointed, cfg.num_chunks, cfg.run.eval_every,
+    chunk_loop = ChunkLoop("the run", checkpointed, cfg.num_chunks, cfg.run.eval_every,
                       f"python -m experiments.run --resume {out}", restart or "")
-    with session:  # a stop while compiling or in the loop: the stop line, session.status
-        return _run(session, cfg, a, out, resume=resume, overwrite=overwrite, plot=plot, quiet=quiet,
+    with chunk_loop:  # a stop while compiling or in the loop: the stop line, chunk_loop.status
+        return _run(chunk_loop, cfg, a, out, resume=resume, overwrite=overwrite, plot=plot, quiet=quiet,
                     checkpoint_every=checkpoint_every, checkpoint_minutes=checkpoint_minutes,
                     extend_from=extend_from, tensorboard=tensorboard, trainer=trainer)
-    return session.status
+    return chunk_loop.status
 
 
-def _run(session: Session, cfg: config_lib.Config, a: dict, out: str, resume: bool, overwrite: bool, plot: bool,
+def _run(chunk_loop: ChunkLoop, cfg: config_lib.Config, a: dict, out: str, resume: bool, overwrite: bool, plot: bool,
          quiet: bool, checkpoint_every: int, checkpoint_minutes: float, extend_from: int | None, tensorboard: bool,
          trainer) -> int:
     import jax
@@ -257,7 +254,7 @@ def _run(session: Session, cfg: config_lib.Config, a: dict, out: str, resume: bo
     cache, cache_before = compile_cache.current(), compile_cache.counts()
     t0 = time.perf_counter()
     init_fn = jax.jit(vmap_seeds(trainer.init), out_shardings=seeds_sharding)
-    checkpointer = session.keep(Checkpointer(os.path.join(out, "checkpoints")))
+    checkpointer = chunk_loop.keep(Checkpointer(os.path.join(out, "checkpoints")))
     start = 0
     if resume:
         state, meta = checkpointer.restore(checkpoint_shapes(trainer, keys))
@@ -288,20 +285,21 @@ def _run(session: Session, cfg: config_lib.Config, a: dict, out: str, resume: bo
     def ckpt_meta():
         return {"config": config_lib.to_dict(cfg), "run_args": a}
 
-    metrics_writer = session.keep(runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl"))) if main_process else None
-    cycle_writer = (session.keep(runfiles.JsonlWriter(os.path.join(out, "cycles.jsonl")))
+    metrics_writer = chunk_loop.keep(runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl"))) if main_process else None
+    cycle_writer = (chunk_loop.keep(runfiles.JsonlWriter(os.path.join(out, "cycles.jsonl")))
                     if cfg.explorer_spec.cycle_metrics and main_process else None)
     tb_writer = None
     if tensorboard and main_process:
-        tb_writer = session.keep(tb_events.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle,
+        tb_writer = chunk_loop.keep(tb_events.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle,
                                                              cycle_prefix=f"{cfg.run.method}/"))
         if resume:  # the JSONL files end at the checkpoint now (truncated above)
             cycles_path = os.path.join(out, "cycles.jsonl")
             tb_writer.resume(runfiles.read_jsonl(os.path.join(out, "metrics.jsonl")),
                              runfiles.read_jsonl(cycles_path) if os.path.exists(cycles_path) else [],
                              start * cfg.run.eval_every)
-    progress = session.keep(terminal.Progress(cfg.run.total_steps, num_seeds, name, disable=quiet or not main_process,
-                                              initial=start * cfg.run.eval_every))  # rates: this call's steps only
+    progress = chunk_loop.keep(terminal.Progress(cfg.run.total_steps, num_seeds, name,
+                                                 disable=quiet or not main_process,
+                                                 initial=start * cfg.run.eval_every))  # rates: this call's steps only
     t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
 
     def record(chunk: int, metrics) -> int | None:
@@ -331,11 +329,11 @@ def _run(session: Session, cfg: config_lib.Config, a: dict, out: str, resume: bo
     def due(chunks_run: int, since_save: float) -> bool:
         return chunks_run % checkpoint_every == 0 if checkpoint_every else since_save >= 60 * checkpoint_minutes
 
-    state, status, chunks_run = session.run(
+    state, status, chunks_run = chunk_loop.run(
         chunk_fn, state, start=start, fetch=to_host, record=record, progress=progress,
         save=lambda done, s: checkpointer.save(done, s, ckpt_meta()), due=due,
         interrupted=f"; continue with: python -m experiments.run --resume {out}")
-    session.close()  # the files are complete before the summary reads them
+    chunk_loop.close()  # the files are complete before the summary reads them
     if status:
         return status
     train_s = time.perf_counter() - t_train

@@ -182,11 +182,7 @@ def prepare(args) -> tuple[dict, dict, str]:
     a["physics"] = envs.resolve_physics(a["env"], a["source"], a["physics"])
     grid = parse_grid(args.grid)
     out = args.out or default_out(a)
-    if os.path.exists(out) and not os.path.isdir(out):
-        raise ValueError(f"--out {out} is a file, not a folder")
-    if os.path.exists(out) and os.listdir(out) and not args.overwrite:
-        raise ValueError(f"output folder {out} exists; pass --resume {out} to continue it, --overwrite to replace it, "
-                         f"or --out elsewhere")
+    training_args.check_new_out(out, args.overwrite)
     return a, grid, out
 
 
@@ -271,10 +267,10 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
                 if in_flight is not None else f"group {g + 1} had started no chunk")
         return f"stopped by {stop.who}: {lost} (no checkpoint yet); groups 1-{g} are done; continue with: {resume}"
 
-    session = runner.Session(f"group {g + 1}", checkpointed, cfg.num_chunks, cfg.run.eval_every, resume, restart,
+    chunk_loop = runner.ChunkLoop(f"group {g + 1}", checkpointed, cfg.num_chunks, cfg.run.eval_every, resume, restart,
                              line=line)
-    with session:  # a stop while compiling or in the loop: the stop line, session.status
-        session.keep(checkpointer)
+    with chunk_loop:  # a stop while compiling or in the loop: the stop line, chunk_loop.status
+        chunk_loop.keep(checkpointer)
         sweep = Sweep(cfg, env, tuple(group["batched"]))
         values = jnp.repeat(sweep.values([configs[k] for k in members]), num_seeds, axis=0)  # setting-major
         keys = jnp.concatenate([seed_keys(a["seed"], num_seeds)] * len(members))
@@ -289,8 +285,8 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
         chunk_fn = jax.jit(vmap_seeds(sweep.train_chunk), donate_argnums=0).lower(state, values).compile()
         print(f"{label}: {len(members)} x {num_seeds} runs, compiled in {time.perf_counter() - t0:.1f} s"
               + (f", resumed after {start} of {cfg.num_chunks} chunks" if start else ""), flush=True)
-        writer = session.keep(runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl")))
-        progress = session.keep(terminal.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
+        writer = chunk_loop.keep(runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl")))
+        progress = chunk_loop.keep(terminal.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
                                                   disable=args.quiet, initial=start * cfg.run.eval_every))
         t_train = t_chunk = time.perf_counter()
 
@@ -305,13 +301,13 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
                 row["finite"] = bool(finite[i])
             writer.write(rows)
 
-        _, status, _ = session.run(
+        _, status, _ = chunk_loop.run(
             lambda s: chunk_fn(s, values), state, start=start, fetch=jax.device_get, record=record, progress=progress,
             save=lambda done, s: checkpointer.save(done, s, {"group": g, "settings": members}),
             due=lambda _, since_save: since_save >= 60 * args.checkpoint_minutes,
             interrupted=f" of group {g + 1}; continue with: {resume}")
         return status
-    return session.status
+    return chunk_loop.status
 
 
 def summary_rows(out: str, settings, configs) -> list[dict]:

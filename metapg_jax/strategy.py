@@ -23,8 +23,8 @@ A strategy's contract in brief:
 * students: ``architecture(config)``, how the exported ``policy.npz`` describes the acting policy;
 * explorers: ``steps_per_cycle(config)`` (env steps one cycle stores; default ``run.rollout_steps``), the
   per-cycle metrics written to ``cycles.jsonl`` (``cycle_metrics``) and the panels of their plot, a label
-  for run names, and a command-line shortcut for one field (``flag``, e.g. ``--teacher``; the command
-  lines are built before ``--plugin`` loads a file, so a plug-in's fields are set with ``--set``).
+  for run names, and a command-line shortcut for one field (``flag``, e.g. ``--teacher``; a plug-in's too,
+  as the commands import ``--plugin`` files before they build their parsers).
 """
 
 from __future__ import annotations

@@ -1,5 +1,6 @@
 """The shared host loop (metapg_jax/host/runner.py): the chunk loop's order of things and its checkpoint cadence,
-signals, the stop line and the session that holds a loop. Whole runs stopped and resumed: tests/test_longrun.py, test_physics.py, test_sweep.py."""
+signals, the stop line and the ChunkLoop that holds one loop. Whole runs stopped and resumed: tests/test_longrun.py,
+test_physics.py, test_sweep.py."""
 
 import signal
 
@@ -79,8 +80,8 @@ def test_a_stop_that_python_dropped_is_raised_by_the_next_wait():
         signals.wait({"x": np.zeros(2)})
 
 
-def test_a_session_closes_what_it_kept_and_turns_a_stop_into_its_line_and_status(capsys):
-    """A stop raised while compiling (or in the loop) inside ``with session``: everything kept is closed, last
+def test_a_chunk_loop_closes_what_it_kept_and_turns_a_stop_into_its_line_and_status(capsys):
+    """A stop raised while compiling (or in the loop) inside ``with chunk_loop``: everything kept is closed, last
     kept first, the stop line is printed with the latest checkpoint, and the status is the signal's."""
     closed = []
 
@@ -91,25 +92,25 @@ def test_a_session_closes_what_it_kept_and_turns_a_stop_into_its_line_and_status
         def close(self):
             closed.append(self.name)
 
-    session = runner.Session("the run", lambda: 4, 10, 300, "RESUME", "RESTART")
-    with session:
-        session.keep(Closable("checkpointer"))
-        session.keep(Closable("writer"))
+    chunk_loop = runner.ChunkLoop("the run", lambda: 4, 10, 300, "RESUME", "RESTART")
+    with chunk_loop:
+        chunk_loop.keep(Closable("checkpointer"))
+        chunk_loop.keep(Closable("writer"))
         raise runner.Stopped(signal.SIGTERM)
-    assert session.status == 143 and closed == ["writer", "checkpointer"]
+    assert chunk_loop.status == 143 and closed == ["writer", "checkpointer"]
     err = capsys.readouterr().err
     assert "stopped by SIGTERM: no chunk had started; the run's last checkpoint holds 4 chunks (1,200 env steps" in err
     assert err.rstrip().endswith("continue with: RESUME")
     # A caller's own line wins where it gives one; other errors pass through after closing.
-    session = runner.Session("group 2", lambda: None, 10, 300, "RESUME", "RESTART", line=lambda stop, c, d: "MINE")
-    with session:
+    chunk_loop = runner.ChunkLoop("group 2", lambda: None, 10, 300, "RESUME", "RESTART", line=lambda stop, c, d: "MINE")
+    with chunk_loop:
         raise runner.Stopped(signal.SIGINT)
-    assert session.status == 130 and capsys.readouterr().err.strip() == "MINE"
-    session = runner.Session("the run", lambda: None, 10, 300, "RESUME", "RESTART")
-    kept = session.keep(Closable("progress"))
+    assert chunk_loop.status == 130 and capsys.readouterr().err.strip() == "MINE"
+    chunk_loop = runner.ChunkLoop("the run", lambda: None, 10, 300, "RESUME", "RESTART")
+    kept = chunk_loop.keep(Closable("progress"))
     try:
-        with session:
+        with chunk_loop:
             raise ValueError("not a stop")
     except ValueError:
         pass
-    assert closed[-1] == kept.name and session.status == 0
+    assert closed[-1] == kept.name and chunk_loop.status == 0

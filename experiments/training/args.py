@@ -152,6 +152,16 @@ def check_devices(num_seeds: int) -> None:
                          f"use a multiple of {n} (or limit the devices, e.g. CUDA_VISIBLE_DEVICES)")
 
 
+def check_new_out(out: str, overwrite: bool) -> None:
+    """Refuses (``ValueError``, one line) an output folder that is a file, or that holds files unless
+    ``--overwrite`` replaces them."""
+    if os.path.exists(out) and not os.path.isdir(out):
+        raise ValueError(f"--out {out} is a file, not a folder")
+    if os.path.exists(out) and os.listdir(out) and not overwrite:
+        raise ValueError(f"output folder {out} exists; pass --resume {out} to continue it, --overwrite to replace it, "
+                         f"or --out elsewhere")
+
+
 def resume_args(args: argparse.Namespace, out: str) -> tuple[config_lib.Config, dict, int | None]:
     """A resumed run's (config, run args, stored budget when the resume extends it, else None), from its
     ``config.json`` and the options given; raises ``ValueError`` (one line) when the options would change the

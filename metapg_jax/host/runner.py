@@ -2,8 +2,8 @@
 to the caller as they come, the progress bar advanced, checkpoints on a cadence, at the end and on a first Ctrl-C,
 and the one line that says what a stop lost and how to go on.
 
-``experiments.run`` (one run) and ``experiments.sweep`` (one program group) each open a ``Session`` before they
-compile and run their program through it; what differs between them (the rows they write, the NaN guard, what
+``experiments.run`` (one run) and ``experiments.sweep`` (one program group) each open a ``ChunkLoop`` before
+they compile and run their program through it; what differs between them (the rows they write, the NaN guard, what
 a checkpoint holds) is theirs, passed in as functions.
 """
 
@@ -151,14 +151,14 @@ def run_chunks(step: Callable[[Any], tuple[Any, Any]], state: Any, *, start: int
     return state, status, chunks_run
 
 
-class Session:
+class ChunkLoop:
     """A command's hold on one chunk loop, from before it compiles to its last checkpoint: the signal handlers
     (``Signals``), what must be closed when the loop ends (``keep``: the checkpointer, the metric writers, the
     progress bar), and the one line a stop prints.
 
-    ``with session:`` swallows a ``Stopped`` raised inside (while compiling or in the loop): what was kept is
+    ``with chunk_loop:`` swallows a ``Stopped`` raised inside (while compiling or in the loop): what was kept is
     closed, the stop line is printed and ``status`` is 130 or 143. Code after the ``with`` block returns
-    ``session.status``.
+    ``chunk_loop.status``.
 
     Args:
       what: 'the run', or for a sweep 'group 2'.
@@ -177,7 +177,7 @@ class Session:
         self._open: list[Any] = []
 
     def keep(self, thing: Any) -> Any:
-        """``thing`` (anything with ``close()``) is closed when the session ends or ``close`` is called."""
+        """``thing`` (anything with ``close()``) is closed when the loop ends or ``close`` is called."""
         self._open.append(thing)
         return thing
 
@@ -187,10 +187,10 @@ class Session:
             self._open.pop().close()
 
     def run(self, step: Callable[[Any], tuple[Any, Any]], state: Any, **kwargs: Any) -> tuple[Any, int, int]:
-        """``run_chunks`` with this session's signals and chunk count (the other arguments are its)."""
+        """``run_chunks`` with this loop's signals and chunk count (the other arguments are its)."""
         return run_chunks(step, state, num_chunks=self._num_chunks, signals=self.signals, **kwargs)
 
-    def __enter__(self) -> Session:
+    def __enter__(self) -> ChunkLoop:
         self.signals.__enter__()
         return self
 
