@@ -244,7 +244,7 @@ def cell_provenance(r: RunResult) -> dict:
         "preset": r.config.get("preset"), "run_args": r.run_args, "config": r.config,
         "machine": prov.get("machine") or {k: r.info.get(k) for k in ("jax_version", "backend", "devices")},
         "wall_seconds": wall,
-        # every call's training time, compile excluded, from the metrics rows: also the calls a session end
+        # every call's training time, compile excluded, from the metrics rows: also the calls a shutdown
         # killed before reproduce.json recorded them (which wall_seconds misses)
         "train_seconds_all_calls": r.train_seconds, "train_seconds_all_calls_exact": r.train_seconds_exact,
     }

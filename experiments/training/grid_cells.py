@@ -116,7 +116,7 @@ def write_cell_record(out: str, argv: list[str], status: int, seconds: float, st
         with open(os.path.join(out, call["diff"]), "w") as f:
             f.write(diff if diff.endswith("\n") or not diff else diff + "\n")
     calls = calls + [call]
-    # A call killed before it wrote its record (session end, SIGKILL) still started the cell: config.json's
+    # A call killed before it wrote its record (machine shut down, SIGKILL) still started the cell: config.json's
     # commit wins; the first recorded call's is the fallback for a cell without one.
     cfg = read_json(os.path.join(out, "config.json"))
     first = ({"commit": cfg["commit"], "dirty": cfg.get("dirty", calls[0].get("dirty"))} if cfg.get("commit") else

@@ -47,10 +47,9 @@ class TensorBoardWriter:
         self._events_writer, self._event_pb2, self._summary_pb2 = EventsWriter, event_pb2, summary_pb2
         self.folder = folder
         self.steps_per_cycle = steps_per_cycle
-        if "/" not in cycle_prefix[:-1] and cycle_prefix.endswith("/"):
-            self.cycle_prefix = cycle_prefix
-        else:
+        if not cycle_prefix.endswith("/") or "/" in cycle_prefix[:-1]:
             raise ValueError(f"cycle_prefix must be one name and a slash, got {cycle_prefix!r}")
+        self.cycle_prefix = cycle_prefix
         self._writers: dict[int, Any] = {}
 
     def seed_folder(self, seed: int) -> str:
