@@ -72,9 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--method", default=None,
                    help=f"the explorer (default {d['method']}): {described(strategy.explorers())}; or one a "
                         f"--plugin registers")
-    for flag, (owner, field) in flags().items():  # a plug-in's too, once preload_plugins imported it
+    for flag, (owners, field) in flags().items():  # a plug-in's too, once preload_plugins imported it
         p.add_argument(f"--{flag}", default=None,
-                       help=f"--method={owner} only: sets {field} (the same as --set {field}=V)")
+                       help=f"--method={' or '.join(owners)} only: sets {field} (the same as --set {field}=V)")
     p.add_argument("--student", default=None,
                    help=f"the off-policy learner (default {d['student']}): {described(strategy.students())}; or "
                         f"one a --plugin registers")

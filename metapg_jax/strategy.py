@@ -64,6 +64,11 @@ class Student(Protocol):
 
         Returns: (the new state, a dict of scalar metrics: chunk means in ``metrics.jsonl``)."""
 
+    def sample_action(self, actor: Any, obs_normalized: Any, z: Any) -> Any:
+        """A stochastic student's only (its spec says ``stochastic=True``): its policy's action in [-1, 1] for
+        one normalised observation, with ``z`` (shape ``(action_size,)``, standard normal at each step, white or
+        colored) as the sampling noise (SAC: tanh(mean + std * z)). ``--method=own`` explores with it."""
+
 
 class ActingExplorer(Protocol):
     """An explorer that only chooses actions; the loop runs its cycle (``metapg_jax.loop.Trainer.acting_cycle``):
@@ -130,6 +135,8 @@ class StudentSpec:
     # config -> how ``policy.npz`` describes the acting policy to its NumPy loader (``metapg_jax.host.policy``);
     # None: the ``ActorCritic`` actor of the ``ddpg`` group (``metapg_jax.actor_critic.actor_architecture``).
     architecture: Callable[[Any], dict] | None = None
+    # True: the student's policy is stochastic and it has ``sample_action`` (it explores with --method=own).
+    stochastic: bool = False
     summary: str = ""                                           # a few words for --help
 
     @property
@@ -145,6 +152,8 @@ class ExplorerSpec:
     make: Callable[[Any], ActingExplorer | Explorer]
     group: type | None = None
     group_name: str | None = None                               # default: ``name``
+    # Another explorer's group this one reads instead of a group of its own (its shortcut then sets that group).
+    uses_group: str | None = None
     group_defaults: Callable[[Any], Any] | None = None
     schedule: Callable[[Any], Any] = _keep
     derive: Callable[[Any, dict], Any] = _keep
@@ -164,8 +173,24 @@ class ExplorerSpec:
         return (self.group_name or self.name) if self.group is not None else None
 
 
+@dataclasses.dataclass(frozen=True)
+class GroupSpec:
+    """A config group of a part of a strategy that is not a student or an explorer itself: e.g. an action-noise
+    kind of the noise explorer (``metapg_jax.strategies.pink``). Read as ``config.<name>``, set with ``--set``."""
+
+    name: str
+    group: type
+    group_defaults: Callable[[Any], Any] | None = None
+    validate: Callable[[Any], None] = _no_checks
+
+    @property
+    def group_key(self) -> str:
+        return self.name
+
+
 _STUDENTS: dict[str, StudentSpec] = {}
 _EXPLORERS: dict[str, ExplorerSpec] = {}
+_GROUPS: dict[str, GroupSpec] = {}
 _LOADED = False
 
 
@@ -191,7 +216,7 @@ def _check_group(key: str | None, owner: str) -> None:
         return
     if key in RESERVED or key.startswith("_"):
         raise ValueError(f"config group {key!r} of {owner!r}: the name is taken by the config itself")
-    for spec in [*_STUDENTS.values(), *_EXPLORERS.values()]:
+    for spec in [*_STUDENTS.values(), *_EXPLORERS.values(), *_GROUPS.values()]:
         if spec.group_key == key and spec.name != owner:
             raise ValueError(f"config group {key!r} is already registered by {spec.name!r}")
 
@@ -210,6 +235,15 @@ def register_explorer(spec: ExplorerSpec | str, make: Callable | None = None, **
     spec = spec if isinstance(spec, ExplorerSpec) else ExplorerSpec(spec, make, **fields)
     _check_group(spec.group_key, spec.name)
     _EXPLORERS[spec.name] = spec
+    return spec
+
+
+def register_group(spec: GroupSpec | str, group: type | None = None, **fields: Any) -> GroupSpec:
+    """Registers a config group of its own for a part of a strategy (:class:`GroupSpec`, or its name, dataclass
+    and spec fields); its ``validate`` runs with every config's checks."""
+    spec = spec if isinstance(spec, GroupSpec) else GroupSpec(spec, group, **fields)
+    _check_group(spec.group_key, spec.name)
+    _GROUPS[spec.name] = spec
     return spec
 
 
@@ -239,10 +273,23 @@ def explorer(name: str) -> ExplorerSpec:
     return specs[name]
 
 
+def extra_groups() -> dict[str, GroupSpec]:
+    """The groups registered with :func:`register_group`."""
+    load_builtins()
+    return dict(_GROUPS)
+
+
 def groups() -> dict[str, tuple[type, Callable[[Any], Any] | None]]:
-    """Every registered strategy's config group: {name: (dataclass, group_defaults)}, in registration order."""
+    """Every registered config group: {name: (dataclass, group_defaults)}, in registration order (the students',
+    the explorers', then those of :func:`register_group`)."""
     return {spec.group_key: (spec.group, spec.group_defaults)
-            for spec in [*students().values(), *explorers().values()] if spec.group is not None}
+            for spec in [*students().values(), *explorers().values(), *extra_groups().values()]
+            if spec.group is not None}
+
+
+def validators() -> list[Callable[[Any], None]]:
+    """Every registered strategy's and group's ``validate``."""
+    return [spec.validate for spec in [*students().values(), *explorers().values(), *extra_groups().values()]]
 
 
 def moved_fields() -> dict[str, str]:
@@ -254,7 +301,17 @@ def moved_fields() -> dict[str, str]:
     return out
 
 
-def flags() -> dict[str, tuple[str, str]]:
-    """Command-line shortcuts: {option: (explorer name, dotted field)}, e.g. ``--teacher``."""
-    return {spec.flag[0]: (spec.name, f"{spec.group_key}.{spec.flag[1]}")
-            for spec in explorers().values() if spec.flag}
+def flags() -> dict[str, tuple[tuple[str, ...], str]]:
+    """Command-line shortcuts: {option: (the explorers it applies to, dotted field)}, e.g. ``--teacher``. Two
+    explorers may share a shortcut if it sets the same field (``--noise`` of ``ddpg`` and ``own``)."""
+    out: dict[str, tuple[tuple[str, ...], str]] = {}
+    for spec in explorers().values():
+        if not spec.flag:
+            continue
+        option, field = spec.flag
+        dotted = f"{spec.group_key or spec.uses_group}.{field}"
+        owners, known = out.get(option, ((), dotted))
+        if known != dotted:
+            raise ValueError(f"--{option} of {spec.name!r} sets {dotted}, but that of {owners[0]!r} sets {known}")
+        out[option] = ((*owners, spec.name), dotted)
+    return out

@@ -21,6 +21,10 @@ def isolated_registry(monkeypatch) -> None:
     strategy.load_builtins()
     monkeypatch.setattr(strategy, "_STUDENTS", dict(strategy._STUDENTS))
     monkeypatch.setattr(strategy, "_EXPLORERS", dict(strategy._EXPLORERS))
+    monkeypatch.setattr(strategy, "_GROUPS", dict(strategy._GROUPS))
+    from metapg_jax.strategies import noise
+
+    monkeypatch.setattr(noise, "_KINDS", dict(noise._KINDS))
 
 
 def gymnasium_make(gym_id: str):

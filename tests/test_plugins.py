@@ -167,7 +167,7 @@ def test_bad_plugins_and_unknown_names_are_refused_before_compiling(tmp_path, ca
     assert "importing it failed: RuntimeError: typo" in err and len(err.strip().splitlines()) == 1
     plugin = tmp_path / "mine.py"
     plugin.write_text(PLUGIN)
-    assert run.main([*TINY, "--plugin", str(plugin), "--student=sac", "--out", str(tmp_path / "d")]) == 2
+    assert run.main([*TINY, "--plugin", str(plugin), "--student=redq", "--out", str(tmp_path / "d")]) == 2
     err = capsys.readouterr().err
-    assert "unknown student 'sac'; valid students: counting, ddpg, td3" in err
+    assert "unknown student 'redq'; valid students: counting, ddpg, sac, td3" in err
     assert not os.path.exists(tmp_path / "d")

@@ -34,9 +34,9 @@ def test_a_registered_explorer_trains_without_touching_the_loop(monkeypatch):
 
 def test_an_unknown_method_or_student_is_refused_naming_the_registered_ones():
     cfg = tiny_config("ddpg")
-    with pytest.raises(ValueError, match=r"unknown method 'nope'; valid methods: ddpg, meta$"):
+    with pytest.raises(ValueError, match=r"unknown method 'nope'; valid methods: ddpg, meta, own$"):
         make_train(dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, method="nope")))
-    with pytest.raises(ValueError, match=r"unknown student 'nope'; valid students: ddpg, td3$"):
+    with pytest.raises(ValueError, match=r"unknown student 'nope'; valid students: ddpg, sac, td3$"):
         config_lib.make_config("pendulum", student="nope")
 
 

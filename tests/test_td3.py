@@ -115,7 +115,7 @@ def test_modern_td3_preset_has_the_authors_settings():
     assert cfg.noise.kind == "normal" and cfg.noise.stddev == 0.1
     assert (cfg.td3.policy_noise, cfg.td3.noise_clip, cfg.td3.policy_delay) == (0.2, 0.5, 2)
     with pytest.raises(ValueError, match="unknown student"):
-        make_config("hopper", "ddpg", "modern", student="sac")
+        make_config("hopper", "ddpg", "modern", student="redq")
 
 
 def test_meta_on_td3_compiles_once_stays_finite_and_gives_its_stored_numbers():
@@ -162,4 +162,4 @@ def test_meta_on_td3_resumed_gives_the_numbers_of_one_run(tmp_path):
     assert stored["config"]["student"] == "td3" and stored["run_args"]["student"] == "td3"
     act = load_policy(os.path.join(one, "policy.npz"), seed=1)
     assert act(np.zeros(3, np.float32)).shape == (1,)
-    assert run.main(["--env=pendulum", "--student=sac", "--out", str(tmp_path / "x")]) == 2
+    assert run.main(["--env=pendulum", "--student=redq", "--out", str(tmp_path / "x")]) == 2

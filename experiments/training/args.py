@@ -16,7 +16,7 @@ from metapg_jax import config as config_lib
 from metapg_jax import strategy
 
 # The built-in explorers' command-line shortcuts for one field of their group (``--teacher``, ``--noise``;
-# metapg_jax.strategy.flags): {option: (explorer, dotted field)}. ``flags()`` adds an imported plug-in's.
+# metapg_jax.strategy.flags): {option: (explorers, dotted field)}. ``flags()`` adds an imported plug-in's.
 FLAGS = strategy.flags()
 # Arguments that define the run; stored in config.json so --resume can rebuild and compare it. The main job
 # trains the paper's teacher: --method defaults to meta. ``defaults()`` adds an imported plug-in's shortcut.
@@ -25,7 +25,7 @@ RUN_ARGS = {"env": "pendulum", "method": "meta", **{flag: None for flag in FLAGS
             "student": "ddpg", "overrides": [], "plugins": []}
 
 
-def flags() -> dict[str, tuple[str, str]]:
+def flags() -> dict[str, tuple[tuple[str, ...], str]]:
     """Every registered explorer's shortcut, a plug-in's too once ``import_plugins`` has imported it."""
     return strategy.flags()
 
@@ -112,9 +112,9 @@ def config_from_run_args(a: dict) -> config_lib.Config:
     if not 0 <= a["seed"] < 2 ** 32:
         raise ValueError(f"--seed must be in [0, 2**32), got {a['seed']}")
     shortcuts = flags()
-    for flag, (owner, _) in shortcuts.items():
-        if a.get(flag) is not None and a["method"] != owner:
-            raise ValueError(f"--{flag} applies to --method={owner} only")
+    for flag, (owners, _) in shortcuts.items():
+        if a.get(flag) is not None and a["method"] not in owners:
+            raise ValueError(f"--{flag} applies to --method={' or '.join(owners)} only")
     cfg = config_lib.make_config(env=a["env"], method=a["method"], preset=a["preset"], steps=a["steps"],
                                  source=a["source"], overrides=parse_overrides(a["overrides"]),
                                  physics=a["physics"], student=a["student"],

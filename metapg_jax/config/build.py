@@ -117,8 +117,8 @@ def validate(cfg: Config) -> Config:
         raise ValueError(f"ddpg.critic_l2 must be >= 0, got {cfg.ddpg.critic_l2}")
     if not (math.isfinite(cfg.ddpg.final_init) and cfg.ddpg.final_init >= 0):
         raise ValueError(f"ddpg.final_init must be a finite number >= 0, got {cfg.ddpg.final_init!r}")
-    for spec in [*strategy.students().values(), *strategy.explorers().values()]:
-        spec.validate(cfg)
+    for check in strategy.validators():
+        check(cfg)
     cycle = cfg.steps_per_cycle
     if cfg.run.total_steps % cycle:
         raise ValueError(f"run.total_steps={cfg.run.total_steps} is not a multiple of the {cycle} env steps "
