@@ -20,10 +20,18 @@ METHODS = {
     "ddpg-normal": ["--method=ddpg", "--noise=normal"],
     # TD3's own exploration: Gaussian action noise 0.1 (Fujimoto et al. 2018; the paper preset's normal noise is 0.2).
     "td3-normal": ["--method=ddpg", "--noise=normal", "--set", "noise.stddev=0.1"],
+    # Colored (pink, beta 1) noise at TD3's scale 0.1 (Eberhard et al., 2023), and FastTD3's per-episode scales
+    # sigma ~ U[0.001, 0.4] (metapg_jax/strategies/pink.py, mixed.py).
+    "td3-pink": ["--method=ddpg", "--noise=pink", "--set", "noise.stddev=0.1"],
+    "td3-mixed": ["--method=ddpg", "--noise=mixed"],
+    # SAC explores with its own policy, its sampling noise white or colored (metapg_jax/strategies/own.py).
+    "sac-own": ["--method=own"],
+    "sac-pink": ["--method=own", "--noise=pink"],
 }
 METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta (variance)",
                 "ddpg-paramnoise": "DDPG (param noise)", "ddpg-normal": "DDPG (normal noise)",
-                "td3-normal": "TD3 (normal noise)"}
+                "td3-normal": "TD3 (normal noise)", "td3-pink": "TD3 (pink noise)", "td3-mixed": "TD3 (mixed scales)",
+                "sac-own": "SAC (own policy)", "sac-pink": "SAC (pink noise)"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
 # for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/strategies/noise.py); the tuned
@@ -33,14 +41,15 @@ BASELINES = {"paper": BASELINE, "modern": "ddpg-normal", "tuned": BASELINE}
 # than DDPG) and the baseline its Meta is compared against, whatever the preset: for TD3, TD3 with its
 # own Gaussian exploration noise.
 GRIDS = {"ddpg": ("meta-independent", "meta-variance", "ddpg-paramnoise", "ddpg-normal"),
-         "td3": ("meta-independent", "td3-normal")}
-STUDENT_BASELINES = {"td3": "td3-normal"}
-STUDENT_NAMES = {"ddpg": "DDPG", "td3": "TD3"}
+         "td3": ("meta-independent", "td3-normal", "td3-pink", "td3-mixed"),
+         "sac": ("sac-own", "sac-pink")}
+STUDENT_BASELINES = {"td3": "td3-normal", "sac": "sac-own"}
+STUDENT_NAMES = {"ddpg": "DDPG", "td3": "TD3", "sac": "SAC"}
 
 
 def noise_methods(methods) -> list[str]:
-    """The methods among ``methods`` that explore with noise, not a teacher (``--method=ddpg``)."""
-    return [m for m in methods if "--method=ddpg" in METHODS.get(m, ())]
+    """The methods among ``methods`` that explore with noise, not a teacher (``--method=ddpg`` or ``own``)."""
+    return [m for m in methods if {"--method=ddpg", "--method=own"} & set(METHODS.get(m, ()))]
 
 
 def methods_for(student: str = "ddpg") -> tuple[str, ...]:
