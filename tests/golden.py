@@ -42,6 +42,10 @@ CASES = {
     "idp-meta-independent-mujoco": ("inverted_double_pendulum", "meta", "paper", None, "independent", "mujoco"),
     "pendulum-ddpg-normal-td3": ("pendulum", "ddpg", "paper", "normal", None, "mjx", "td3"),
     "pendulum-meta-independent-td3": ("pendulum", "meta", "paper", None, "independent", "mjx", "td3"),
+    "pendulum-ddpg-pink": ("pendulum", "ddpg", "paper", "pink", None, "mjx"),
+    "pendulum-ddpg-mixed": ("pendulum", "ddpg", "paper", "mixed", None, "mjx"),
+    "pendulum-own-pink-sac": ("pendulum", "own", "paper", "pink", None, "mjx", "sac"),
+    "pendulum-meta-independent-sac": ("pendulum", "meta", "paper", None, "independent", "mjx", "sac"),
 }
 
 

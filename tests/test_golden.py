@@ -21,6 +21,8 @@ CHECKED_ELSEWHERE = {
     "idp-meta-independent-mujoco": "tests.test_train:test_chunked_and_single_scan_agree",
     "pendulum-meta-independent-td3": "tests.test_td3:test_meta_on_td3_compiles_once_stays_finite_and_gives_its_stored_numbers",
     "pendulum-ddpg-normal-td3": "tests.test_td3:test_td3_trains_as_the_student_of_the_noise_explorer_deterministically",
+    "pendulum-own-pink-sac": "tests.test_train:test_chunked_and_single_scan_agree",
+    "pendulum-meta-independent-sac": "tests.test_sac:test_meta_on_sac_compiles_once_and_trains_two_chunks_with_finite_numbers",
 }
 
 
@@ -30,14 +32,16 @@ def test_short_runs_give_the_stored_numbers(name):
 
 
 def test_every_method_has_a_case_and_every_case_is_checked():
+    from metapg_jax import strategy
+    from metapg_jax.strategies import noise
     from metapg_jax.strategies.meta import TEACHERS
-    from metapg_jax.strategies.noise import NOISES
 
     kinds = {(env, method, noise or teacher) for env, method, _, noise, teacher, *_ in golden.CASES.values()}
     for env in ("pendulum",):
-        assert {(env, "ddpg", n) for n in NOISES} <= kinds
+        assert {(env, "ddpg", n) for n in noise.names()} <= kinds
         assert {(env, "meta", t) for t in TEACHERS} <= kinds
-    assert {case[6] for case in golden.CASES.values() if len(case) > 6} == {"td3"}
+    assert {case[1] for case in golden.CASES.values()} == set(strategy.explorers())
+    assert {case[6] for case in golden.CASES.values() if len(case) > 6} | {"ddpg"} == set(strategy.students())
     assert set(golden.stored()["cases"]) == set(golden.CASES) >= set(CHECKED_ELSEWHERE)
     import importlib
 

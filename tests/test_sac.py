@@ -2,7 +2,9 @@
 squashed Gaussian's log-probability against a numerical change of variables, the temperature's direction,
 SAC as the student of the Meta explorer (one compile, finite numbers) and its policy.npz export."""
 
+import json
 import math
+import os
 
 import chex
 import jax
@@ -17,7 +19,8 @@ from metapg_jax.host.policy import describe, export_policies, load_policy
 from metapg_jax.strategies.sac import SAC, SACConfig, squashed_gaussian_log_prob
 from metapg_jax.train import make_train, seed_keys, vmap_seeds
 from metapg_jax.types import Transition
-from tests.helpers import TINY
+from tests import golden
+from tests.helpers import sigkill_resume_and_compare, tiny_argv
 
 GAMMA, TAU, L2 = 0.99, 0.01, 0.01
 
@@ -172,17 +175,15 @@ def test_sac_group_defaults_overrides_and_checks():
 def test_meta_on_sac_compiles_once_and_trains_two_chunks_with_finite_numbers():
     """The teacher of Algorithm 1 on the SAC student: its look-ahead copy is a SAC state, D1 and the evaluation
     run tanh(mean). The seed-vmapped train_chunk is traced and compiled once for both chunks."""
-    cfg = make_config("pendulum", "meta", student="sac", steps=600,
-                      overrides={**TINY, "ddpg.hidden": "8,8", "meta.hidden": "8,8", "ddpg.batch_size": 8,
-                                 "run.train_steps": 3, "run.eval_episodes": 1})
-    trainer = make_train(cfg)
+    case = "pendulum-meta-independent-sac"
+    trainer = make_train(golden.case_config(case))
+    cfg = trainer.config
     assert isinstance(trainer.student, SAC) and cfg.num_chunks == 2
     init = jax.jit(vmap_seeds(trainer.init))
     chunk = jax.jit(vmap_seeds(chex.assert_max_traces(n=1)(trainer.train_chunk)))
-    state = init(seed_keys(0, 2))
-    log_alpha0 = np.asarray(state.student.log_alpha)
-    for _ in range(cfg.num_chunks):
-        state, metrics = chunk(state)
+    log_alpha0 = np.asarray(init(seed_keys(*golden.KEYS)).student.log_alpha)
+    state, chunks = golden.run_chunks(trainer, init, chunk)
+    for metrics in chunks:
         cycle = metrics["cycle"]
         assert np.all(np.asarray(cycle["finite"]))
         for name in ("critic_loss", "actor_loss", "alpha_loss", "alpha", "entropy", "lookahead_critic_loss"):
@@ -190,6 +191,7 @@ def test_meta_on_sac_compiles_once_and_trains_two_chunks_with_finite_numbers():
         assert np.all(np.isfinite(np.asarray(metrics["eval_return"])))
     assert chunk._cache_size() == 1
     chex.clear_trace_counter()
+    golden.assert_stored(case, golden.numbers(state, chunks))
     assert np.all(np.asarray(state.env_steps) == 600)
     assert np.all(np.asarray(state.student.log_alpha) != log_alpha0)  # the temperature learned
     assert np.all(np.isfinite(np.asarray(state.student.log_alpha)))
@@ -235,3 +237,14 @@ def test_policy_export_round_trip_gives_tanh_of_the_mean(tmp_path):
         assert act(obs).shape == (7, 1) and act(obs[0]).shape == (1,)
         np.testing.assert_allclose(act(obs), want, rtol=1e-5, atol=1e-6)
         assert np.std(want) > 1e-2  # the means vary: the check is not of zeros
+
+
+def test_a_sac_run_with_colored_noise_resumes_bit_for_bit_after_sigkill(tmp_path):
+    """SAC exploring with its own policy and pink sampling noise: the temperature, the student's key and the
+    episode's colored sequence are in the checkpoint, so a run killed mid-way and resumed draws the same noise
+    and ends with the numbers of an uninterrupted one."""
+    args = [*tiny_argv("own", **{"run.buffer_size": 1800}), "--student=sac", "--noise=pink", "--steps=1800",
+            "--checkpoint-every=1"]
+    full = sigkill_resume_and_compare(tmp_path, args, chunks=6)
+    stored = json.load(open(os.path.join(full, "config.json")))["config"]
+    assert stored["student"] == "sac" and stored["noise"]["kind"] == "pink"

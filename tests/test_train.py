@@ -28,14 +28,15 @@ def _program(case):
     return trainer, jax.jit(vmap_seeds(trainer.train))
 
 
-# The single scan is compared on DDPG (whose program the seed-count and parameter-noise tests below run too)
-# and on Meta with MuJoCo's C engine (host calls inside the nested scans); Pendulum Meta runs its chunks only.
+# The single scan is compared on DDPG (whose program the seed-count and parameter-noise tests below run too),
+# on Meta with MuJoCo's C engine (host calls inside the nested scans) and on SAC exploring with its own policy
+# and colored noise (a per-episode sequence in the explorer's state); Pendulum Meta runs its chunks only.
 # ``Trainer.train`` is the scan of ``train_chunk`` whatever the student and explorer (TD3: tests/test_td3.py).
-SINGLE_SCAN = {"pendulum-ddpg-adaptive-param", "idp-meta-independent-mujoco"}
+SINGLE_SCAN = {"pendulum-ddpg-adaptive-param", "idp-meta-independent-mujoco", "pendulum-own-pink-sac"}
 
 
 @pytest.mark.parametrize("case", ["pendulum-ddpg-adaptive-param", "pendulum-meta-independent",
-                                  "idp-meta-independent-mujoco"])
+                                  "idp-meta-independent-mujoco", "pendulum-own-pink-sac"])
 def test_chunked_and_single_scan_agree(case):
     """The chunk compiles once and its state stays finite; the chunks give the case's stored numbers
     (tests/golden.py); for the cases in ``SINGLE_SCAN`` the same key gives the same numbers twice and chunked
