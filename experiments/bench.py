@@ -57,12 +57,38 @@ def _cold_compiles() -> None:
     compile_cache.enable(None)
 
 
+def grid_strategy(name: str) -> dict:
+    """A grid method's options (``experiments.build.grid.METHODS``) as a measurement's explorer, student and
+    overrides; ``label`` (the method column) is the grid method's name."""
+    from experiments.build.grid import METHODS, STUDENT_OF
+
+    opts, spec = list(METHODS[name]), {"label": name, "student": STUDENT_OF.get(name, "ddpg"), "overrides": {}}
+    shortcuts = {"--noise": "noise.kind", "--teacher": "meta.teacher"}
+    while opts:
+        opt = opts.pop(0)
+        key, _, value = opt.partition("=")
+        if key == "--method":
+            spec["method"] = value
+        elif key in shortcuts:
+            spec["overrides"][shortcuts[key]] = value
+        elif opt == "--set":
+            field, _, value = opts.pop(0).partition("=")
+            spec["overrides"][field] = value
+        else:
+            raise ValueError(f"grid method {name!r}: option {opt!r} is not one experiments.bench reads")
+    return spec
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.bench", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--envs", default=None,
                    help="comma-separated tasks (default: pendulum,inverted_double_pendulum; all tasks with --env-speed)")
     p.add_argument("--methods", default="ddpg,meta")
+    p.add_argument("--strategies", default=None,
+                   help="comma-separated grid methods instead of --methods (experiments.build.grid.METHODS, e.g. "
+                        "td3-normal,td3-pink,td3-mixed,sac-own,sac-pink): each with its student and options, "
+                        "named in the method column")
     p.add_argument("--presets", default="paper,modern")
     p.add_argument("--seeds", default="1,8,32")
     p.add_argument("--repeats", type=int, default=3)
@@ -119,8 +145,12 @@ def main(argv: list[str] | None = None) -> int:
     from metapg_jax import strategy
     from metapg_jax.config import PRESETS
 
+    from experiments.build.grid import METHODS
+
     try:
         parse_list(args.methods, tuple(sorted(strategy.explorers())), "method")
+        if args.strategies:
+            parse_list(args.strategies, tuple(METHODS), "grid method")
         parse_list(args.presets, PRESETS, "preset")
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
@@ -188,17 +218,19 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.quick:
         tasks, args.seeds = ["pendulum"], "1,8"
-    specs = [{"env": e, "method": m, "preset": pr, "seeds": int(s), "repeats": args.repeats,
+    strategies = ([grid_strategy(name) for name in args.strategies.split(",")] if args.strategies else
+                  [{"method": m} for m in args.methods.split(",")])
+    specs = [{"env": e, **m, "preset": pr, "seeds": int(s), "repeats": args.repeats,
               "target_steps": args.target_steps or (3000 if e == "pendulum" else 600),
               "stock_mjx": args.stock_mjx and e != "pendulum", "plain_vmap": args.plain_vmap, "physics": ph}
              for e in tasks for ph in (["mjx"] if e == "pendulum" else physics)
-             for m in args.methods.split(",") for pr in args.presets.split(",") for s in args.seeds.split(",")]
+             for m in strategies for pr in args.presets.split(",") for s in args.seeds.split(",")]
     rows, failed = [], []
     if args.append and os.path.exists(json_path):
         with open(json_path) as f:
             rows = json.load(f)["rows"]
     for i, spec in enumerate(specs):
-        label = f"{spec['env']} {spec['method']} {spec['preset']} x{spec['seeds']}{_variant(spec)}"
+        label = f"{spec['env']} {spec.get('label', spec['method'])} {spec['preset']} x{spec['seeds']}{_variant(spec)}"
         print(f"[{i + 1}/{len(specs)}] {label} ...", flush=True)
         res = subprocess.run([sys.executable, "-m", "experiments.bench", "--one", json.dumps(spec)],
                              capture_output=True, text=True)

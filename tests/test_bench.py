@@ -74,7 +74,8 @@ def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
     assert "unknown task(s) cartpole" in capsys.readouterr().err
     assert bench.main(["--env-speed", "--envs", "pendulum", "--num-envs", "0", "--out", out]) == 2
     assert "--num-envs and --repeats must be positive" in capsys.readouterr().err
-    for argv, message in ((["--methods", "ddpg,sac"], "unknown method 'sac'; valid: ddpg, meta"),
+    for argv, message in ((["--methods", "ddpg,sac"], "unknown method 'sac'; valid: ddpg, meta, own"),
+                          (["--strategies", "td3-brown"], "unknown grid method 'td3-brown'"),
                           (["--presets", "fast"], "unknown preset 'fast'; valid: paper, modern"),
                           (["--seeds", "1,x"], "--seeds must be comma-separated positive integers"),
                           (["--seeds", "0"], "--seeds must be comma-separated positive integers"),
@@ -107,3 +108,16 @@ def test_replay_benchmark_records_rows_and_replaces_same_day_ones(tmp_path):
         rows = json.load(f)["rows"]
     assert sorted((r["buffer"], r["measured"], r["ms_per_cycle"]) for r in rows) == [
         ("flashbax", "2026-12-01", 5.0), ("ring", "2026-11-23", 3.0), ("ring", "2026-12-01", 2.0)]
+
+
+def test_every_grid_method_is_a_strategy_the_benchmark_can_measure():
+    """``--strategies``: each grid method's options become a valid config with the method's student."""
+    from experiments.bench import grid_strategy
+    from experiments.build.grid import METHODS, STUDENT_OF
+    from metapg_jax.config import make_config, validate
+
+    for name in METHODS:
+        spec = grid_strategy(name)
+        cfg = validate(make_config("hopper", spec["method"], student=spec["student"], overrides=spec["overrides"]))
+        assert cfg.student == STUDENT_OF.get(name, "ddpg") and spec["label"] == name
+    assert grid_strategy("td3-pink")["overrides"] == {"noise.kind": "pink", "noise.stddev": "0.1"}

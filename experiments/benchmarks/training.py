@@ -43,7 +43,7 @@ def measure_one(spec: dict) -> dict:
     rss_base = _rss_mib()
     overrides = dict(spec.get("overrides", {}))
     cfg = make_config(spec["env"], spec["method"], spec["preset"], overrides=overrides,
-                      physics=spec.get("physics", "mjx"))
+                      physics=spec.get("physics", "mjx"), student=spec.get("student", "ddpg"))
     env = None
     if spec.get("stock_mjx"):  # MJX's own (scanned) line search instead of our early exit, for before/after
         import envs
@@ -116,7 +116,8 @@ def measure_one(spec: dict) -> dict:
     buffer_mib = seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20
     peak = terminal.peak_rss_mib()
     return {
-        **{k: spec[k] for k in ("env", "method", "preset", "seeds")}, "stock_mjx": bool(spec.get("stock_mjx")),
+        **{k: spec[k] for k in ("env", "method", "preset", "seeds")}, "method": spec.get("label", spec["method"]),
+        "student": cfg.student, "stock_mjx": bool(spec.get("stock_mjx")),
         "physics": cfg.env.physics,
         "plain_vmap": bool(spec.get("plain_vmap")), "measured": time.strftime("%Y-%m-%d"),
         "backend": jax.default_backend(), "device": str(jax.devices()[0]),

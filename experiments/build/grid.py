@@ -44,6 +44,9 @@ GRIDS = {"ddpg": ("meta-independent", "meta-variance", "ddpg-paramnoise", "ddpg-
          "td3": ("meta-independent", "td3-normal", "td3-pink", "td3-mixed"),
          "sac": ("sac-own", "sac-pink")}
 STUDENT_BASELINES = {"td3": "td3-normal", "sac": "sac-own"}
+# The student of a grid method that only one student's grid has (the others: DDPG's).
+STUDENT_OF = {m: student for student, methods in GRIDS.items() if student != "ddpg" for m in methods
+              if m not in GRIDS["ddpg"]}
 STUDENT_NAMES = {"ddpg": "DDPG", "td3": "TD3", "sac": "SAC"}
 
 
