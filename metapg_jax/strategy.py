@@ -20,11 +20,16 @@ A strategy's contract in brief:
 * ``schedule(config) -> config``: what choosing the strategy changes elsewhere (before ``--set``), and
   ``derive(config, overrides) -> config`` (after ``--set``: fields derived from others, unless set);
 * ``validate(config)``: one-line ``ValueError`` for bad values, before anything compiles;
-* students: ``architecture(config)``, how the exported ``policy.npz`` describes the acting policy;
+* students: ``architecture(config)``, how the exported ``policy.npz`` describes the acting policy, and
+  ``stochastic`` (a policy it samples with ``sample_action``: ``--method=own`` explores with it);
 * explorers: ``steps_per_cycle(config)`` (env steps one cycle stores; default ``run.rollout_steps``), the
   per-cycle metrics written to ``cycles.jsonl`` (``cycle_metrics``) and the panels of their plot, a label
   for run names, and a command-line shortcut for one field (``flag``, e.g. ``--teacher``; a plug-in's too,
-  as the commands import ``--plugin`` files before they build their parsers).
+  as the commands import ``--plugin`` files before they build their parsers); an explorer may read another's
+  group instead of one of its own (``uses_group``: ``own`` reads ``noise``) and share its shortcut.
+
+A part of a strategy with settings of its own that is neither a student nor an explorer (an action-noise kind
+of ``metapg_jax.strategies.noise``, e.g. ``pink``) registers its group alone (``register_group``).
 """
 
 from __future__ import annotations
