@@ -12,6 +12,10 @@ episode statistics (see ``envs/wrappers.py``).
 
 ``TASKS`` also carries each task's per-paper protocol (budget, meta schedule),
 used by the experiment presets.
+
+Any other gymnasium MuJoCo env runs as ``gym:<Id>`` (e.g. ``gym:Walker2d-v5``, with keyword arguments
+``gym:Ant-v5(ctrl_cost_weight=0.1)``): gymnasium's own env, its observation, reward, termination and reset
+computed by its own code on the host, stepped on MuJoCo's C engine only (``envs/gym_generic.py``).
 """
 
 from __future__ import annotations
@@ -58,13 +62,19 @@ PHYSICS = ("mjx", "mujoco")
 PHYSICS_CHOICES = ("auto", *PHYSICS)
 
 
+def is_gym_task(name: str) -> bool:
+    """A ``gym:<Id>`` task: any gymnasium MuJoCo env, on the C engine only (``envs/gym_generic.py``)."""
+    return name.startswith("gym:")
+
+
 def resolve_physics(name: str, source: str, physics: str, backend: str | None = None) -> str:
     """The engine ``physics='auto'`` means; any other value is returned unchanged.
 
     'auto' is MuJoCo's C engine for a gymnasium MuJoCo task where JAX's default backend is the CPU
     (measured on 2 CPU cores: the main job compiled 8.0x and trained 2.3x faster there than on MJX;
     results/benchmarks/BENCHMARKS.md, "The main job"), and MJX on accelerators (the C engine runs on the host CPU), for brax's
-    models (MJX only) and for Pendulum (a JAX task: its value is irrelevant and stays 'mjx').
+    models (MJX only) and for Pendulum (a JAX task: its value is irrelevant and stays 'mjx'). A ``gym:`` task
+    has the C engine only: 'auto' is 'mujoco' on every backend.
 
     Args:
       name, source: the task and its model source.
@@ -73,6 +83,8 @@ def resolve_physics(name: str, source: str, physics: str, backend: str | None = 
     """
     if physics != "auto":
         return physics
+    if is_gym_task(name):
+        return "mujoco"
     if name == "pendulum" or source != "gymnasium":
         return "mjx"
     if backend is None:
@@ -87,15 +99,23 @@ def default_budget(name: str) -> int:
 
     Equal to the paper's for pendulum, IP, IDP and HalfCheetah; Hopper gets
     990k instead of 1M and Reacher 696k instead of 700k, because the meta
-    cycle (300 steps) does not divide the paper's numbers.
+    cycle (300 steps) does not divide the paper's numbers. A ``gym:`` task has no
+    paper budget: 1M (``envs.gym_generic.DEFAULT_BUDGET``), i.e. 990k.
     """
     spec = get_spec(name)
     return (spec.paper_budget // spec.eval_every) * spec.eval_every
 
 
 def get_spec(name: str) -> TaskSpec:
+    """The task's protocol; ``ValueError`` (one line) for an unknown task, or a ``gym:`` id that is not a
+    registered gymnasium MuJoCo env (checked without building it)."""
+    if is_gym_task(name):
+        from envs.gym_generic import task_spec
+
+        return task_spec(name)
     if name not in TASKS:
-        raise ValueError(f"unknown task {name!r}; valid tasks: {', '.join(TASKS)}")
+        raise ValueError(f"unknown task {name!r}; valid tasks: {', '.join(TASKS)}, or gym:<Id> for any "
+                         f"gymnasium MuJoCo env (e.g. gym:Walker2d-v5)")
     return TASKS[name]
 
 
@@ -103,6 +123,15 @@ def check_physics(name: str, source: str, physics: str) -> None:
     """Raises ``ValueError`` (one line) for an engine the task or source cannot use."""
     if physics not in PHYSICS:
         raise ValueError(f"unknown physics {physics!r}; valid physics: {', '.join(PHYSICS_CHOICES)}")
+    if is_gym_task(name):
+        if source != "gymnasium":
+            raise ValueError(f"{name} is gymnasium's own env: --source={source} does not apply (use the default, "
+                             f"--source=gymnasium)")
+        if physics != "mujoco":
+            raise ValueError(f"{name} runs on MuJoCo's C engine only (--physics=mujoco): its observation, reward "
+                             f"and termination are gymnasium's own Python code, called on the host every step, "
+                             f"which MJX (traced into the program) cannot run")
+        return
     if physics == "mujoco" and name == "pendulum":
         raise ValueError("pendulum is a JAX task without MuJoCo physics: --physics=mujoco applies to the "
                          "five MuJoCo tasks (use the default for pendulum)")
@@ -119,6 +148,10 @@ def make_raw(name: str, source: str = "gymnasium", physics: str = "mjx", physics
         raise ValueError(f"unknown source {source!r}; valid sources: {', '.join(SOURCES)}")
     physics = resolve_physics(name, source, physics)
     check_physics(name, source, physics)
+    if is_gym_task(name):
+        from envs.gym_generic import GymnasiumCEnv
+
+        return GymnasiumCEnv(name, threads=physics_threads, **overrides)
     if name == "pendulum":
         if source != "gymnasium":
             raise ValueError("pendulum has only the gymnasium source (our JAX port of Pendulum-v1)")
@@ -141,13 +174,14 @@ def make(name: str, source: str = "gymnasium", episode_length: int | None = None
     """A task wrapped for training: time limit, auto-reset, episode statistics.
 
     Args:
-      name: one of ``TASKS``.
+      name: one of ``TASKS``, or ``gym:<Id>`` (any gymnasium MuJoCo env; ``physics='mujoco'`` or 'auto').
       source: ``'gymnasium'`` (default: gymnasium's v5 model) or ``'brax'`` (brax's own, MJX only).
       episode_length: time limit; default gymnasium's (1000; Reacher 50; Pendulum 200).
       physics: ``'mjx'`` (default), ``'mujoco'`` (MuJoCo's C engine, envs/mujoco_c.py) or ``'auto'``
         (``resolve_physics``: the C engine where JAX runs on the CPU).
       physics_threads: the C engine's threads per batch (default: the CPUs this process may use).
-      **overrides: keyword arguments of the task class (e.g. ``reset_noise_scale``).
+      **overrides: keyword arguments of the task class (e.g. ``reset_noise_scale``); for a ``gym:`` task,
+        of ``gymnasium.make`` (added to those in the name).
     """
     spec = get_spec(name)
     env = make_raw(name, source, physics, physics_threads, **overrides)

@@ -37,6 +37,10 @@ in the same call (``mj_resetData``, the new qpos/qvel, ``mj_forward``, as
 gymnasium's ``reset``). Reset noise is drawn in the program with JAX's PRNG
 (float32, as with MJX: gymnasium's distribution, not its draws).
 
+The program side (``HostCallEnv``: reset, step and the fused step as host calls on state words) also
+carries any gymnasium MuJoCo env, ``gym:<Id>``, whose host side runs gymnasium's own code
+(``envs/gym_generic.py``).
+
 The C engine runs on the host CPU even when JAX runs on a GPU: every step
 then crosses between device and host. MJX is the engine that scales on
 accelerators; this one is for CPUs (measured speeds: docs/performance.md, "Physics engines").
@@ -58,7 +62,7 @@ from jax.extend.core import Primitive
 from jax.interpreters import batching, mlir
 from mujoco import batch as mj_batch
 
-__all__ = ["MujocoCEnv", "HostPhysics", "STATE_SPEC"]
+__all__ = ["HostCallEnv", "MujocoCEnv", "HostPhysics", "STATE_SPEC"]
 
 STATE_SPEC = mujoco.mjtState.mjSTATE_INTEGRATION
 
@@ -292,24 +296,20 @@ class _Scratch:
         return out
 
 
-class MujocoCEnv(Env):
-    """A gymnasium task of ``envs.gym_mujoco`` stepped by MuJoCo's C engine (Brax ``Env`` interface).
+class HostCallEnv(Env):
+    """The program side of a task whose physics and task math run on the host (Brax ``Env`` interface):
+    the state's ``pipeline_state`` is the host's state words, and reset, step and the fused step with
+    auto-reset are one host call each, through ``host_call``.
 
-    Same contract as the MJX task it wraps (actions in [-1, 1], ``done`` = gymnasium's terminated,
-    float32 ``obs``/``reward``/``metrics``, empty ``info`` at reset); ``pipeline_state`` is the
-    float64 integration state as uint32 words (``HostPhysics.nstate`` * 2).
+    Subclasses set ``host`` (``HostPhysics`` here, ``envs.gym_generic.GymnasiumHost`` for a ``gym:`` task),
+    which provides ``obs_size``, ``nu``, ``metric_keys``, the packed widths ``w_state`` / ``w_step_out`` /
+    ``w_reset_out`` and the callbacks ``reset_words(words)`` and ``step_words(words, fused)``; and
+    ``_reset_words(rng)``, the words that ask the host for one fresh episode.
     """
 
     # The auto-reset wrapper calls step_with_reset: one host call per step instead of two.
     fused_autoreset = True
-
-    def __init__(self, task, threads: int | None = None):
-        self.task = task
-        self.host = HostPhysics(task, threads)
-        self.mj_model = task.mj_model
-        self.gym_id = task.gym_id
-        self.frame_skip = task.frame_skip
-        self.dt = task.dt
+    host: "HostPhysics"
 
     @property
     def observation_size(self) -> int:
@@ -323,23 +323,23 @@ class MujocoCEnv(Env):
     def backend(self) -> str:
         return "mujoco"
 
-    # -- the program side -----------------------------------------------------------
+    def _reset_words(self, rng: jax.Array) -> jax.Array:
+        """The host's input that resets one env (the part of ``reset_words``' input for one env)."""
+        raise NotImplementedError
 
     def _state(self, words, obs, reward, done, metrics) -> State:
         return State(pipeline_state=words, obs=obs, reward=reward, done=done, metrics=metrics, info={})
 
-    def state_from_qpos_qvel(self, qpos: jax.Array, qvel: jax.Array) -> State:
-        """State at qpos/qvel (float32 in the program), as gymnasium's ``reset`` makes it."""
+    def _fresh(self, out: jax.Array) -> State:
+        """The state of a fresh episode from ``reset_words``' output [state | obs f32]."""
         h = self.host
-        words = jnp.concatenate([_words(qpos), _words(qvel)], axis=-1)
-        out = host_call(h.reset_words, words, h.w_reset_out)
         zero = jnp.zeros((), jnp.float32)
         return self._state(out[:h.w_state], _floats(out[h.w_state:]), zero, zero,
                            {k: zero for k in h.metric_keys})
 
     def reset(self, rng: jax.Array) -> State:
-        qpos, qvel = self.task.sample_qpos_qvel(rng)
-        return self.state_from_qpos_qvel(qpos, qvel)
+        h = self.host
+        return self._fresh(host_call(h.reset_words, self._reset_words(rng), h.w_reset_out))
 
     def _call_step(self, state: State, action: jax.Array, reset=None):
         h = self.host
@@ -348,8 +348,8 @@ class MujocoCEnv(Env):
         action = jnp.clip(jnp.asarray(action, jnp.float32), -1.0, 1.0)
         parts = [state.pipeline_state, _words(action)]
         if reset is not None:
-            qpos, qvel, force = reset
-            parts += [_words(qpos), _words(qvel), _words(force.astype(jnp.float32)[None])]
+            reset_words, force = reset
+            parts += [reset_words, _words(force.astype(jnp.float32)[None])]
         fused = reset is not None
         out = host_call(lambda w: h.step_words(w, fused), jnp.concatenate(parts, axis=-1), h.w_step_out)
         words, f = out[:h.w_state], _floats(out[h.w_state:])
@@ -371,11 +371,40 @@ class MujocoCEnv(Env):
         with ``pipeline_state`` already the fresh episode's where it ended; ``fresh`` has the state
         and first observation of the new episode there (elsewhere the stepped ones). One host call.
         """
-        qpos, qvel = self.task.sample_qpos_qvel(reset_rng)
-        stepped, obs = self._call_step(state, action, (qpos, qvel, force_reset))
+        stepped, obs = self._call_step(state, action, (self._reset_words(reset_rng), force_reset))
         zero = jnp.zeros((), jnp.float32)
         fresh = self._state(stepped.pipeline_state, obs, zero, zero, {k: zero for k in self.host.metric_keys})
         return stepped, fresh
+
+
+class MujocoCEnv(HostCallEnv):
+    """A gymnasium task of ``envs.gym_mujoco`` stepped by MuJoCo's C engine (Brax ``Env`` interface).
+
+    Same contract as the MJX task it wraps (actions in [-1, 1], ``done`` = gymnasium's terminated,
+    float32 ``obs``/``reward``/``metrics``, empty ``info`` at reset); ``pipeline_state`` is the
+    float64 integration state as uint32 words (``HostPhysics.nstate`` * 2).
+    """
+
+    def __init__(self, task, threads: int | None = None):
+        self.task = task
+        self.host = HostPhysics(task, threads)
+        self.mj_model = task.mj_model
+        self.gym_id = task.gym_id
+        self.frame_skip = task.frame_skip
+        self.dt = task.dt
+
+    # -- the program side -----------------------------------------------------------
+
+    def _reset_words(self, rng: jax.Array) -> jax.Array:
+        """qpos/qvel drawn with the task's reset noise (``sample_qpos_qvel``), as float32 words."""
+        qpos, qvel = self.task.sample_qpos_qvel(rng)
+        return jnp.concatenate([_words(qpos), _words(qvel)], axis=-1)
+
+    def state_from_qpos_qvel(self, qpos: jax.Array, qvel: jax.Array) -> State:
+        """State at qpos/qvel (float32 in the program), as gymnasium's ``reset`` makes it."""
+        h = self.host
+        words = jnp.concatenate([_words(qpos), _words(qvel)], axis=-1)
+        return self._fresh(host_call(h.reset_words, words, h.w_reset_out))
 
     # -- host helpers -----------------------------------------------------------------
 

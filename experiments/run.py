@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import shutil
 import sys
 import time
@@ -67,7 +68,10 @@ def build_parser() -> argparse.ArgumentParser:
         prog="python -m experiments.run",
         description="Train DDPG (baseline) or Meta (Algorithm 1 of Xu et al., 2018) on many seeds at once.")
     d = RUN_ARGS
-    p.add_argument("--env", default=None, help=f"task: {', '.join(envs.TASKS)} (default {d['env']})")
+    p.add_argument("--env", default=None,
+                   help=f"task: {', '.join(envs.TASKS)} (default {d['env']}), or gym:<Id> for any gymnasium MuJoCo "
+                        f"env on the C engine, e.g. gym:Walker2d-v5 or 'gym:Ant-v5(ctrl_cost_weight=0.1)' "
+                        f"(docs/environments.md)")
     described = lambda specs: "; ".join(f"'{name}': {spec.summary}" for name, spec in specs.items())
     p.add_argument("--method", default=None,
                    help=f"the explorer (default {d['method']}): {described(strategy.explorers())}; or one a "
@@ -149,7 +153,9 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
         a = resolved_run_args(a, cfg)
         engine = "-mujoco" if cfg.env.physics == "mujoco" else ""
         student = "" if cfg.student == RUN_ARGS["student"] else f"-{cfg.student}"
-        out = args.out or os.path.join("runs", f"{cfg.env.name}-{cfg.run.method}{student}-{cfg.preset}{engine}"
+        # A gym: task's name as a folder name: gym:Ant-v5(ctrl_cost_weight=0.1) -> gym-Ant-v5-ctrl_cost_weight=0.1.
+        task = re.sub(r"[^\w.=+-]+", "-", cfg.env.name).strip("-")
+        out = args.out or os.path.join("runs", f"{task}-{cfg.run.method}{student}-{cfg.preset}{engine}"
                                                f"-s{a['seed']}")
         check_new_out(out, args.overwrite)
     check_devices(a["seeds"])

@@ -1,0 +1,430 @@
+"""Any gymnasium MuJoCo task on MuJoCo's C engine inside the program: ``gym:<Id>`` (``physics='mujoco'`` only).
+
+``envs.make("gym:Walker2d-v5", physics="mujoco")`` (``--env=gym:Walker2d-v5``) runs gymnasium's registered
+env ``Walker2d-v5`` (any ``gymnasium.envs.mujoco.MujocoEnv`` subclass: v4 and v5 tasks, or one a ``--plugin``
+registers) with gymnasium's own observation, reward, termination, reward components and reset, by calling
+gymnasium's own Python code on the host. The six built-in tasks keep their own definitions
+(``envs/gym_mujoco.py``, on both engines); this is the path for every other task.
+
+How it is exact
+---------------
+The host holds one gymnasium env instance (``gymnasium.make(id, **kwargs).unwrapped``) and nothing between
+calls but that scratch. For each env of the batch, a call rebuilds the instance's ``MjData`` from the env's
+carried words, runs gymnasium's own ``step`` (or ``reset``) on it, and writes the new words back. Carrying
+only the integration state (``mj_getState(mjSTATE_INTEGRATION)``, what ``envs/mujoco_c.py`` carries for the
+built-in tasks) would not do: gymnasium's ``step`` reads *derived* fields before it simulates (Ant-v5's
+``xpos`` of the torso, Humanoid-v5's ``xipos`` for the centre of mass), and those are what the previous step's
+last ``mj_step`` left, computed at the state one substep *before* the current one. So the words are a
+*replay record*, one float64 row per env:
+
+* ``[0, S]``: a fresh episode at integration state ``S``; rebuilt as gymnasium's ``reset`` leaves ``MjData``:
+  ``mj_resetData``, ``mj_setState(S)``, ``mj_forward``;
+* ``[1, P]``: after a step, ``P`` the integration state before the step's *last* ``mj_step``; rebuilt as
+  gymnasium's ``do_simulation`` leaves it: ``mj_resetData``, ``mj_setState(P)``, one ``mj_step``,
+  ``mj_rnePostConstraint``.
+
+Every field that ``mj_step``/``mj_forward`` (and ``mj_rnePostConstraint``) compute is then gymnasium's to the
+bit, whatever the env reads. ``P`` is captured by replacing the instance's ``_step_mujoco_simulation``
+(gymnasium's ``do_simulation`` core: ``ctrl``, ``mj_step`` x frame_skip, ``mj_rnePostConstraint``) with the
+same calls split before the last ``mj_step`` (``mj_step(nstep=k)`` is ``k`` calls of ``mj_step``). The cost is
+one extra ``mj_step`` per env step, plus gymnasium's Python step per env (the envs of a batch are stepped one
+after another; ``physics_threads`` does not apply). The row is float64, carried bit for bit as uint32 words
+in the JAX state, so checkpoints, bit-for-bit resume and the rest work as for the built-in tasks.
+
+Observations and rewards reach the program as float32 casts of gymnasium's float64 numbers; the reward
+components are the scalar entries of gymnasium's ``info`` (those of a probe step at construction). Actions
+in [-1, 1] are mapped onto the actuators' ``ctrlrange`` in float64 on the host (as the built-in tasks), and
+gymnasium's step gets those controls. ``done`` is gymnasium's ``terminated``; the unwrapped env's own
+``truncated`` (False for gymnasium's MuJoCo envs) is not used: the time limit is ``envs.wrappers``' with
+gymnasium's registered ``max_episode_steps``.
+
+Resets: gymnasium's own ``reset(seed=s)`` on the host, with a 64-bit ``s`` drawn in the program from the
+env's PRNG key (``jax.random.bits``). The initial states are then gymnasium's distribution exactly, and
+gymnasium's own draws for that seed (the built-in tasks draw their reset noise with JAX's PRNG instead).
+
+Names: ``gym:<Id>`` or ``gym:<Id>(k=v, ...)``, keyword arguments of ``gymnasium.make`` written as Python
+keyword arguments with literal values (numbers, ``True``/``False``/``None``, quoted strings, tuples; ``inf``
+and ``nan``), e.g. ``gym:Ant-v5(ctrl_cost_weight=0.1, healthy_z_range=(0.3, inf))``. The keyword arguments
+are part of the task's name, so config.json, the run's label and ``--resume`` carry them.
+
+MJX is refused: the task's math here is gymnasium's Python code run on the host, which only the host-call
+engine can call; MJX traces the task into the program, which needs the task written in JAX (the built-in
+tasks are, in ``envs/gym_mujoco.py``).
+"""
+
+from __future__ import annotations
+
+import ast
+import functools
+import inspect
+import numbers
+import re
+import threading
+from typing import Any
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+
+from envs import TaskSpec
+from envs.mujoco_c import STATE_SPEC, HostCallEnv
+
+__all__ = ["GymnasiumCEnv", "GymnasiumHost", "make_gymnasium_env", "parse_name", "task_spec"]
+
+# A gym: task's default budget (no paper budget exists for it): 1M env steps per seed, the common budget of
+# MuJoCo locomotion benchmarks; envs.default_budget rounds it down to whole evaluation intervals (990k).
+DEFAULT_BUDGET = 1_000_000
+_NAME = re.compile(r"gym:([^()\s]+)(?:\((.*)\))?", re.DOTALL)
+
+
+def _literal(node: ast.AST) -> Any:
+    """A keyword argument's value: a Python literal, with ``inf`` and ``nan`` (``ValueError`` otherwise)."""
+    if isinstance(node, ast.Name) and node.id in ("inf", "nan"):
+        return float(node.id)
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+        value = _literal(node.operand)
+        if isinstance(value, numbers.Number) and not isinstance(value, bool):
+            return -value if isinstance(node.op, ast.USub) else value
+    if isinstance(node, (ast.Tuple, ast.List)):
+        values = [_literal(e) for e in node.elts]
+        return tuple(values) if isinstance(node, ast.Tuple) else values
+    return ast.literal_eval(node)
+
+
+@functools.lru_cache(maxsize=None)
+def parse_name(name: str) -> tuple[str, tuple[tuple[str, Any], ...]]:
+    """``'gym:Ant-v5(ctrl_cost_weight=0.1)'`` -> ``('Ant-v5', (('ctrl_cost_weight', 0.1),))``; ``ValueError``
+    (one line) for a malformed name."""
+    m = _NAME.fullmatch(name)
+    if m is None:
+        raise ValueError(f"bad task name {name!r}: expected gym:<gymnasium id> or gym:<id>(key=value, ...), "
+                         f"e.g. gym:Walker2d-v5")
+    gym_id, args = m.group(1), m.group(2)
+    if not args or not args.strip():
+        return gym_id, ()
+    try:
+        call = ast.parse(f"f({args})", mode="eval").body
+    except SyntaxError:
+        raise ValueError(f"{name}: the keyword arguments are not Python syntax (write them as key=value, "
+                         f"...)") from None
+    if call.args or any(k.arg is None for k in call.keywords):
+        raise ValueError(f"{name}: only keyword arguments (key=value) can follow the id")
+    kwargs = []
+    for k in call.keywords:
+        try:
+            kwargs.append((k.arg, _literal(k.value)))
+        except (ValueError, TypeError):
+            raise ValueError(f"{name}: {k.arg}={ast.unparse(k.value)} is not a literal (numbers, True/False/None, "
+                             f"'strings', tuples; inf and nan)") from None
+    names = [k for k, _ in kwargs]
+    if len(set(names)) != len(names):
+        raise ValueError(f"{name}: a keyword argument is given twice")
+    return gym_id, tuple(kwargs)
+
+
+def _env_class(name: str, gym_id: str):
+    """The registered env's class, checked to be a MuJoCo env of the ``mujoco`` package."""
+    import gymnasium
+    from gymnasium.envs.mujoco import MujocoEnv
+    from gymnasium.envs.registration import load_env_creator
+
+    spec = gymnasium.envs.registry.get(gym_id)
+    if spec is None:
+        import difflib
+
+        close = difflib.get_close_matches(gym_id, list(gymnasium.envs.registry), n=1, cutoff=0.8)
+        hint = f" (did you mean gym:{close[0]}?)" if close else ""
+        raise ValueError(f"unknown task {name!r}: gymnasium has no env {gym_id!r}{hint}")
+    entry = spec.entry_point
+    try:
+        creator = load_env_creator(entry) if isinstance(entry, str) else entry
+    except Exception as err:  # a registered module that cannot be imported here
+        raise ValueError(f"{name}: cannot load {gym_id}'s entry point {entry}: "
+                         f"{type(err).__name__}: {err}".splitlines()[0]) from None
+    if not (isinstance(creator, type) and issubclass(creator, MujocoEnv)):
+        what = entry if isinstance(entry, str) else getattr(entry, "__name__", repr(entry))
+        raise ValueError(f"{name}: {gym_id} is not a MuJoCo env (its entry point {what} is not a "
+                         f"gymnasium.envs.mujoco.MujocoEnv); gym: tasks are gymnasium's MuJoCo envs, run on "
+                         f"MuJoCo's C engine")
+    return spec, creator
+
+
+@functools.lru_cache(maxsize=None)
+def task_spec(name: str):
+    """The ``envs.TaskSpec`` of a ``gym:`` task; ``ValueError`` (one line) for an unknown or non-MuJoCo id, or a
+    keyword argument the env does not take. Cheap: nothing is built (the id's module is imported)."""
+    gym_id, kwargs = parse_name(name)
+    spec, cls = _env_class(name, gym_id)
+    from gymnasium.envs.mujoco import MujocoEnv
+
+    def takes(c) -> list[str]:
+        return [p.name for p in inspect.signature(c.__init__).parameters.values()
+                if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and p.name != "self"]
+
+    unknown = [k for k, _ in kwargs if k not in takes(cls) + takes(MujocoEnv)]
+    if unknown:
+        raise ValueError(f"{name}: {gym_id} takes no keyword argument {unknown[0]!r} "
+                         f"(its own: {', '.join(takes(cls))})")
+    if spec.max_episode_steps is None:
+        raise ValueError(f"{name}: {gym_id} is registered without a time limit (max_episode_steps)")
+    return TaskSpec(gym_id, int(spec.max_episode_steps), DEFAULT_BUDGET)
+
+
+def make_gymnasium_env(name: str, **overrides):
+    """gymnasium's own env of a ``gym:`` task, unwrapped (no time limit, order or checker wrappers): the
+    instance the host steps, and the tests' reference. ``overrides`` add to the name's keyword arguments."""
+    import gymnasium
+
+    from envs.mujoco_base import without_the_settotalmass_warning
+
+    task_spec(name)
+    gym_id, kwargs = parse_name(name)
+    kwargs = {**dict(kwargs), **overrides}
+    try:
+        with without_the_settotalmass_warning():
+            return gymnasium.make(gym_id, disable_env_checker=True, **kwargs).unwrapped
+    except Exception as err:  # a keyword argument's value the env cannot take, a missing asset, ...
+        raise ValueError(f"{name}: gymnasium.make({gym_id!r}, **{kwargs}) failed: "
+                         f"{type(err).__name__}: {err}".splitlines()[0]) from None
+
+
+def _scalar(value: Any) -> bool:
+    return np.ndim(value) == 0 and isinstance(np.asarray(value).item(), numbers.Number)
+
+
+class GymnasiumHost:
+    """The host side of a ``gym:`` task (see the module docstring): gymnasium's env, rebuilt from each env's
+    replay row before its own ``step`` / ``reset`` runs.
+
+    ``step`` / ``reset`` / ``integration_state`` are plain numpy functions (float64; used by the callbacks and
+    by tests that compare with gymnasium); ``step_words`` / ``reset_words`` are the callbacks' entry points
+    (``envs.mujoco_c.HostCallEnv``'s host protocol).
+    """
+
+    def __init__(self, name: str, **overrides):
+        from gymnasium import spaces
+        from gymnasium.envs.mujoco import MujocoEnv
+
+        self.env = env = make_gymnasium_env(name, **overrides)
+        if type(env)._step_mujoco_simulation is not MujocoEnv._step_mujoco_simulation:
+            raise ValueError(f"{name}: {type(env).__name__} overrides MujocoEnv._step_mujoco_simulation; the "
+                             f"C-engine path replays gymnasium's own")
+        self.model, self.data = env.model, env.data
+        self.nstate = mujoco.mj_stateSize(self.model, STATE_SPEC)
+        self.nrow = 1 + self.nstate  # [mode | integration state]
+        self.nq, self.nv, self.nu = self.model.nq, self.model.nv, self.model.nu
+        obs_space, act_space = env.observation_space, env.action_space
+        if not (isinstance(obs_space, spaces.Box) and len(obs_space.shape) == 1):
+            raise ValueError(f"{name}: the observation space {obs_space} is not a flat Box")
+        if not (isinstance(act_space, spaces.Box) and act_space.shape == (self.nu,)):
+            raise ValueError(f"{name}: the action space {act_space} is not a Box of the {self.nu} actuators")
+        self.obs_size = int(obs_space.shape[0])
+        # [-1, 1] -> the actuators' ctrlrange in float64 (gymnasium's action space is that range in float32);
+        # an env with another action space: its bounds.
+        ctrlrange = np.array(self.model.actuator_ctrlrange, np.float64)
+        if (np.array_equal(act_space.low, ctrlrange[:, 0].astype(np.float32))
+                and np.array_equal(act_space.high, ctrlrange[:, 1].astype(np.float32))):
+            self.low, self.high = ctrlrange[:, 0], ctrlrange[:, 1]
+        else:
+            self.low, self.high = np.float64(act_space.low), np.float64(act_space.high)
+        if not (np.isfinite(self.low).all() and np.isfinite(self.high).all() and (self.low < self.high).all()):
+            raise ValueError(f"{name}: the action space {act_space} has no finite range to map [-1, 1] onto")
+        # gymnasium's do_simulation core, split before its last mj_step (module docstring).
+        self._before_last = np.empty(self.nstate)
+        self._simulated = 0
+        env._step_mujoco_simulation = self._simulate
+        self._lock = threading.Lock()
+        try:
+            self.metric_keys = self._probe(name)
+        except ValueError:
+            raise
+        except Exception as err:  # e.g. a keyword argument of the wrong type, used only when it steps
+            raise ValueError(f"{name}: gymnasium's env failed on a probe step: "
+                             f"{type(err).__name__}: {err}".splitlines()[0]) from None
+        self.w_state = 2 * self.nrow
+        self.w_step_out = self.w_state + 2 * self.obs_size + 2 + len(self.metric_keys)
+        self.w_reset_out = self.w_state + self.obs_size
+
+    def _simulate(self, ctrl, n_frames) -> None:
+        """``MujocoEnv._step_mujoco_simulation`` (ctrl, ``mj_step`` x n_frames, ``mj_rnePostConstraint``),
+        keeping the integration state before the last ``mj_step``."""
+        m, d = self.model, self.data
+        d.ctrl[:] = ctrl
+        if n_frames > 1:
+            mujoco.mj_step(m, d, nstep=n_frames - 1)
+        mujoco.mj_getState(m, d, self._before_last, STATE_SPEC)
+        mujoco.mj_step(m, d)
+        mujoco.mj_rnePostConstraint(m, d)
+        self._simulated += 1
+
+    def _probe(self, name: str) -> tuple[str, ...]:
+        """One reset and two steps: the replay rebuilds gymnasium's state, and the scalar ``info`` entries
+        (the reward components and the like) that become the state's ``metrics``."""
+        rows = self.reset(np.array([0]))[0]
+        info = {}
+        for action in (np.zeros((1, self.nu)), np.full((1, self.nu), 0.5)):
+            self._simulated = 0
+            self._restore(rows[0])
+            _, _, _, _, info = self.env.step(self.scale_action(action)[0])
+            if self._simulated == 0:
+                raise ValueError(f"{name}: its step does not simulate through MujocoEnv.do_simulation")
+            state = self._get_state()
+            rows = np.concatenate([[1.0], self._before_last])[None]
+            self._restore(rows[0])
+            if not np.array_equal(self._get_state(), state):
+                raise ValueError(f"{name}: replaying its step's last mj_step does not give its state")
+        return tuple(k for k, v in info.items() if _scalar(v))
+
+    # -- the replay row ---------------------------------------------------------------
+
+    def _get_state(self) -> np.ndarray:
+        out = np.empty(self.nstate)
+        mujoco.mj_getState(self.model, self.data, out, STATE_SPEC)
+        return out
+
+    def _restore(self, row: np.ndarray) -> None:
+        """The instance's ``MjData`` as gymnasium left it, from a replay row (module docstring)."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        mujoco.mj_setState(m, d, row[1:], STATE_SPEC)
+        if row[0] == 0.0:
+            mujoco.mj_forward(m, d)
+        else:
+            mujoco.mj_step(m, d)
+            mujoco.mj_rnePostConstraint(m, d)
+
+    def _reset_one(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        obs, _ = self.env.reset(seed=int(seed))
+        return np.concatenate([[0.0], self._get_state()]), obs
+
+    # -- numpy API (float64) ------------------------------------------------------
+
+    def scale_action(self, action: np.ndarray) -> np.ndarray:
+        """Actions in [-1, 1] -> controls (float64), as ``GymMujocoEnv.scale_action`` for the built-in tasks."""
+        return self.low + (np.asarray(action, np.float64) + 1.0) * 0.5 * (self.high - self.low)
+
+    def reset(self, seeds: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """gymnasium's ``reset(seed=s)`` for each of ``seeds`` (n,): (replay rows (n, nrow), obs (n, obs))."""
+        seeds = np.asarray(seeds).reshape(-1)
+        rows, obs = np.empty((len(seeds), self.nrow)), np.empty((len(seeds), self.obs_size))
+        with self._lock:
+            for i, seed in enumerate(seeds):
+                rows[i], obs[i] = self._reset_one(int(seed))
+        return rows, obs
+
+    def integration_state(self, rows: np.ndarray) -> np.ndarray:
+        """The integration state (``mj_getState``, mjSTATE_INTEGRATION) each replay row stands for (n, nstate)."""
+        rows = np.asarray(rows, np.float64).reshape(-1, self.nrow)
+        out = np.empty((len(rows), self.nstate))
+        with self._lock:
+            for i, row in enumerate(rows):
+                self._restore(row)
+                out[i] = self._get_state()
+        return out
+
+    def step(self, rows: np.ndarray, action: np.ndarray, reset_seeds=None, force_reset=None) -> dict:
+        """One env step of n envs from replay rows (n, nrow) with actions (n, nu) in [-1, 1] (mapped onto
+        ctrlrange in float64; ``ctrl`` in the result): gymnasium's own ``step`` of each.
+
+        Returns a dict of float64 arrays: ``next_obs``, ``reward``, ``terminated`` (bool) and ``metrics`` (the
+        scalar ``info`` entries), all of the step; ``rows`` and ``obs``, the state after it. With
+        ``reset_seeds`` (n,), the envs that ended (terminated, or ``force_reset``) are reset with gymnasium's
+        ``reset(seed=reset_seeds[i])``: their ``rows`` and ``obs`` are the fresh episode's.
+        """
+        rows = np.asarray(rows, np.float64).reshape(-1, self.nrow)
+        n = len(rows)
+        ctrl = self.scale_action(np.asarray(action).reshape(n, self.nu))
+        next_obs, reward = np.empty((n, self.obs_size)), np.empty(n)
+        terminated = np.zeros(n, bool)
+        metrics = {k: np.zeros(n) for k in self.metric_keys}
+        new_rows = np.empty((n, self.nrow))
+        new_rows[:, 0] = 1.0
+        obs = next_obs
+        with self._lock:
+            for i in range(n):
+                self._restore(rows[i])
+                o, r, term, _, info = self.env.step(ctrl[i])
+                next_obs[i], reward[i], terminated[i] = o, r, term
+                for k in self.metric_keys:
+                    metrics[k][i] = info.get(k, 0.0)
+                new_rows[i, 1:] = self._before_last
+            if reset_seeds is not None:
+                done = terminated | np.asarray(force_reset, bool).reshape(n)
+                if done.any():
+                    obs = next_obs.copy()
+                    for i in np.flatnonzero(done):
+                        new_rows[i], obs[i] = self._reset_one(int(reset_seeds[i]))
+        return {"next_obs": next_obs, "reward": reward, "terminated": terminated, "metrics": metrics,
+                "rows": new_rows, "obs": obs, "ctrl": ctrl}
+
+    # -- callbacks (packed uint32 words) --------------------------------------------
+
+    @staticmethod
+    def _seeds(words: np.ndarray) -> np.ndarray:
+        """(n, 2) uint32 [low, high] -> (n,) Python ints in [0, 2**64)."""
+        return np.array([int(lo) | (int(hi) << 32) for lo, hi in words], dtype=object)
+
+    def reset_words(self, words: np.ndarray) -> np.ndarray:
+        """[seed uint32 x 2] per env -> [replay row | obs f32]."""
+        words = np.asarray(words)
+        lead = words.shape[:-1]
+        rows, obs = self.reset(self._seeds(words.reshape(-1, 2)))
+        out = np.empty((len(rows), self.w_reset_out), np.uint32)
+        out[:, :self.w_state] = rows.view(np.uint32)
+        out.view(np.float32)[:, self.w_state:] = obs
+        return out.reshape(*lead, self.w_reset_out)
+
+    def step_words(self, words: np.ndarray, fused: bool) -> np.ndarray:
+        """[replay row | action f32 (| seed uint32 x 2 | force_reset f32)] per env ->
+        [replay row | next_obs f32 | obs f32 | reward f32 | terminated f32 | metrics f32]."""
+        words = np.asarray(words)
+        lead = words.shape[:-1]
+        flat = words.reshape(-1, words.shape[-1])
+        ws, nu, no = self.w_state, self.nu, self.obs_size
+        rows = np.ascontiguousarray(flat[:, :ws]).view(np.float64)
+        f = flat[:, ws:].view(np.float32)
+        if fused:
+            r = self.step(rows, f[:, :nu], self._seeds(flat[:, ws + nu:ws + nu + 2]), f[:, nu + 2] > 0.5)
+        else:
+            r = self.step(rows, f[:, :nu])
+        out = np.empty((len(flat), self.w_step_out), np.uint32)
+        out[:, :ws] = r["rows"].view(np.uint32)
+        o = out.view(np.float32)
+        o[:, ws:ws + no] = r["next_obs"]
+        o[:, ws + no:ws + 2 * no] = r["obs"]
+        k = ws + 2 * no
+        o[:, k] = r["reward"]
+        o[:, k + 1] = r["terminated"]
+        for i, key in enumerate(self.metric_keys):
+            o[:, k + 2 + i] = r["metrics"][key]
+        return out.reshape(*lead, self.w_step_out)
+
+
+class GymnasiumCEnv(HostCallEnv):
+    """A ``gym:`` task (gymnasium's own env, any MuJoCo one) on MuJoCo's C engine (Brax ``Env`` interface).
+
+    The contract of the built-in tasks (actions in [-1, 1], ``done`` = gymnasium's terminated, float32
+    ``obs``/``reward``/``metrics``, empty ``info`` at reset); ``pipeline_state`` is the float64 replay row
+    (module docstring) as uint32 words (``GymnasiumHost.nrow`` * 2).
+    """
+
+    def __init__(self, name: str, threads: int | None = None, **overrides):
+        # threads: accepted for envs.make's signature; gymnasium's Python step runs the envs one after another.
+        if threads is not None and int(threads) < 1:
+            raise ValueError(f"physics threads must be >= 1, got {threads}")
+        self.name = name
+        self.host = GymnasiumHost(name, **overrides)
+        self.gym_id = parse_name(name)[0]
+        self.mj_model = self.host.model
+        self.frame_skip = int(self.host.env.frame_skip)
+        self.dt = float(self.host.env.dt)
+
+    def _reset_words(self, rng: jax.Array) -> jax.Array:
+        """The seed of gymnasium's ``reset(seed=...)``: 64 random bits from the key, as two uint32 words."""
+        return jax.random.bits(rng, (2,), jnp.uint32)
+
+    def reset_seed(self, rng: jax.Array) -> int:
+        """The seed ``reset(rng)`` hands gymnasium (outside jit; for comparisons with gymnasium)."""
+        lo, hi = np.asarray(self._reset_words(rng)).tolist()
+        return lo | (hi << 32)
