@@ -22,9 +22,9 @@ def isolated_registry(monkeypatch) -> None:
     monkeypatch.setattr(strategy, "_STUDENTS", dict(strategy._STUDENTS))
     monkeypatch.setattr(strategy, "_EXPLORERS", dict(strategy._EXPLORERS))
     monkeypatch.setattr(strategy, "_GROUPS", dict(strategy._GROUPS))
-    from metapg_jax.strategies import noise
+    from metapg_jax import action_noise
 
-    monkeypatch.setattr(noise, "_KINDS", dict(noise._KINDS))
+    monkeypatch.setattr(action_noise, "_KINDS", dict(action_noise._KINDS))
 
 
 def gymnasium_make(gym_id: str):

@@ -1,5 +1,6 @@
-"""The noise explorer's kinds (metapg_jax/strategies/noise.py): Gaussian, Ornstein-Uhlenbeck, adaptive parameter
-noise; colored noise (strategies/pink.py) and per-episode scales (strategies/mixed.py)."""
+"""Action noise: the noise explorer's (metapg_jax/strategies/noise.py) Gaussian, Ornstein-Uhlenbeck and adaptive
+parameter noise, the kinds of metapg_jax/action_noise.py, colored noise (strategies/pink.py) and per-episode scales
+(strategies/mixed.py)."""
 
 import functools
 
@@ -8,6 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from metapg_jax import action_noise
 from metapg_jax.config import DDPGConfig, make_config
 from metapg_jax.strategies import noise as noise_lib
 from metapg_jax.strategies.ddpg import DDPG
@@ -66,23 +68,22 @@ def test_colored_noise_has_the_power_law_spectrum_and_unit_variance(beta):
     per_step = z.var(axis=0)
     assert abs(per_step.mean() - 1.0) < 0.05 and np.all(np.abs(per_step - 1.0) < 0.2), (per_step.mean(), per_step)
     cfg = _config("pink", **{"noise.stddev": 0.3, "pink.beta": beta})
-    st = noise_lib.episode_start(cfg, noise_lib.init(cfg, None, 2), None, jax.random.PRNGKey(0))
-    _, scale, _ = noise_lib.sample(cfg, st, jax.random.PRNGKey(1))
+    process = action_noise.episode_start(cfg, action_noise.init(cfg, 2), jax.random.PRNGKey(0))
+    _, scale, _ = action_noise.sample(cfg, process, jax.random.PRNGKey(1))
     assert scale == 0.3
 
 
 def test_a_colored_sequence_is_drawn_at_every_episode_start_and_read_step_by_step():
     cfg = _config("pink", **{"env.episode_length": 70})
-    st = noise_lib.init(cfg, None, 2)
-    assert st.process.sequence.shape == (70, 2)
-    first = noise_lib.episode_start(cfg, st, None, jax.random.PRNGKey(1))
-    st = first
+    process = action_noise.init(cfg, 2)
+    assert process.sequence.shape == (70, 2)
+    first = process = action_noise.episode_start(cfg, process, jax.random.PRNGKey(1))
     for t in range(3):
-        z, _, st = noise_lib.sample(cfg, st, jax.random.PRNGKey(10 + t))
-        np.testing.assert_array_equal(z, first.process.sequence[t])
-    np.testing.assert_array_equal(st.process.sequence, first.process.sequence)   # not redrawn between starts
-    again = noise_lib.episode_start(cfg, st, None, jax.random.PRNGKey(2))
-    assert int(again.process.step) == 0 and not np.allclose(again.process.sequence, first.process.sequence)
+        z, _, process = action_noise.sample(cfg, process, jax.random.PRNGKey(10 + t))
+        np.testing.assert_array_equal(z, first.sequence[t])
+    np.testing.assert_array_equal(process.sequence, first.sequence)   # not redrawn between starts
+    again = action_noise.episode_start(cfg, process, jax.random.PRNGKey(2))
+    assert int(again.step) == 0 and not np.allclose(again.sequence, first.sequence)
 
 
 @functools.lru_cache(maxsize=None)

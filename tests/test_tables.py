@@ -283,4 +283,5 @@ def test_the_td3_grid_compares_meta_on_td3_with_td3_and_gaussian_noise(tmp_path)
     assert (results / "visitation_hopper.png").exists()
     assert (results / "cells" / "hopper" / "td3-normal" / "visits.npz").exists()
     with pytest.raises(ValueError, match="no grid for student"):
-        grid.baseline_for("paper", "sac")
+        grid.baseline_for("paper", "redq")
+    assert grid.baseline_for("paper", "sac") == "sac-own"

@@ -15,8 +15,7 @@ import math
 import jax
 import jax.numpy as jnp
 
-from metapg_jax import strategy
-from metapg_jax.strategies import noise
+from metapg_jax import action_noise, strategy
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,7 +51,7 @@ def _validate(config) -> None:
 
 NAME = "mixed"
 strategy.register_group(NAME, MixedConfig)
-noise.register_kind(noise.NoiseKind(
+action_noise.register_kind(action_noise.NoiseKind(
     NAME, _init, _sample, episode_start=_episode_start, validate=_validate,
     metrics=lambda config, stddev: {"noise_scale": stddev[0]},
     summary="Gaussian noise whose scale ~ U[min, max] is redrawn at every episode start (FastTD3)"))

@@ -16,13 +16,10 @@ paper's comparison:
 
 and ``none`` (a = clip(mu(s)), a control).
 
-*Action-noise kinds.* Every kind but ``adaptive-param`` (parameter noise, built into the explorer) is a
-:class:`NoiseKind` in a registry: a per-seed process state (``NoiseState.process``), an optional
-``episode_start`` and a ``sample`` that gives the step's noise as ``z`` and a ``scale`` (the action is
-clip(mu(s) + scale * z)). A kind whose ``z`` is standard normal at every step (``policy_noise``: white or
-colored) can also be the sampling noise of a stochastic student (``metapg_jax.strategies.own``). Other files
-register more (``register_kind``): colored noise (``strategies/pink.py``), per-episode scales
-(``strategies/mixed.py``); their fields live in config groups of their own (``strategy.register_group``).
+The action noises are kinds of ``metapg_jax.action_noise`` (``normal``, ``ou``, ``none`` there; colored noise
+and per-episode scales in ``pink.py`` and ``mixed.py``): the explorer acts with clip(mu(s) + scale * z) for the
+kind's ``z`` and ``scale``, the kind's state in ``NoiseState.process``. Adaptive parameter noise perturbs
+parameters, not actions, and is built in here.
 
 ``NoiseExplorer`` is the DDPG baseline's explorer, registered as ``ddpg`` (``--method=ddpg``; its group is
 ``noise``, its shortcut ``--noise``). It only chooses actions; the loop's cycle (``Trainer.acting_cycle``) is
@@ -40,7 +37,7 @@ import jax
 import jax.numpy as jnp
 from flax import struct
 
-from metapg_jax import strategy
+from metapg_jax import action_noise, strategy
 from metapg_jax.config import positive
 from metapg_jax.loop import Trainer
 from metapg_jax.networks import is_layer_norm_path
@@ -67,89 +64,7 @@ class NoiseState:
     distance: jax.Array        # last measured action distance (adaptive-param)
 
 
-@dataclasses.dataclass(frozen=True)
-class NoiseKind:
-    """An action-noise process, chosen with ``--noise=<name>`` (module docstring). Functions of the whole config
-    (a kind reads ``config.noise`` and a group of its own), pure and jittable:
-
-    * ``init(config, action_size) -> process``: the per-seed state before the first episode;
-    * ``sample(config, process, key) -> (z, scale, process)``: one step's noise ``scale * z``, ``z`` of shape
-      ``(action_size,)``;
-    * ``episode_start(config, process, key) -> process`` (optional): at the first step of every episode;
-    * ``policy_noise``: ``z`` is N(0, 1) at every step and in every dimension and the kind is about ``z``, not its
-      scale: a stochastic student can sample with it (``--method=own``);
-    * ``validate(config)``: one-line ``ValueError`` for bad values, run when the kind is chosen;
-    * ``metrics(config, process) -> dict`` (optional): scalars of the process, added to each cycle's metrics.
-    """
-
-    name: str
-    init: Callable[[Any, int], Any]
-    sample: Callable[[Any, Any, jax.Array], tuple[jax.Array, Any, Any]]
-    episode_start: Callable[[Any, Any, jax.Array], Any] | None = None
-    policy_noise: bool = False
-    validate: Callable[[Any], None] = lambda config: None
-    metrics: Callable[[Any, Any], dict] | None = None
-    summary: str = ""
-
-
-_KINDS: dict[str, NoiseKind] = {}
-PARAMETER_NOISE = "adaptive-param"   # built into the explorer (it perturbs parameters, not actions)
-
-
-def register_kind(kind: NoiseKind) -> NoiseKind:
-    """Registers an action-noise kind (a name registered again is replaced: a plug-in re-imported)."""
-    if kind.name == PARAMETER_NOISE:
-        raise ValueError(f"noise kind {kind.name!r} is built in")
-    _KINDS[kind.name] = kind
-    return kind
-
-
-def kinds() -> dict[str, NoiseKind]:
-    """Every registered action-noise kind (the built-in files' once imported)."""
-    strategy.load_builtins()
-    return dict(_KINDS)
-
-
-def kind(name: str) -> NoiseKind:
-    known = kinds()
-    if name not in known:
-        raise ValueError(f"unknown noise {name!r}; valid noises: {', '.join(names())}")
-    return known[name]
-
-
-def names() -> list[str]:
-    """Every value ``noise.kind`` takes, sorted."""
-    return sorted([*kinds(), PARAMETER_NOISE])
-
-
-def _normal_sample(config, process, key):
-    return jax.random.normal(key, process.shape), config.noise.stddev, process
-
-
-def _ou_sample(config, x, key):
-    n = config.noise
-    x = x + n.ou_theta * (0.0 - x) * n.ou_dt + n.stddev * jnp.sqrt(n.ou_dt) * jax.random.normal(key, x.shape)
-    return x, 1.0, x
-
-
-def _zeros(config, action_size: int) -> jax.Array:
-    """A zero vector of the action's shape (the process of kinds without state: it carries the shape)."""
-    return jnp.zeros((action_size,), jnp.float32)
-
-
-def _check_ou(config) -> None:
-    n = config.noise
-    positive("noise.ou_dt", n.ou_dt)
-    if not (math.isfinite(n.ou_theta) and n.ou_theta >= 0):
-        raise ValueError(f"noise.ou_theta must be a finite number >= 0, got {n.ou_theta!r}")
-
-
-register_kind(NoiseKind("normal", _zeros, _normal_sample, policy_noise=True,
-                        summary="Gaussian: mu(s) + N(0, stddev^2) at every step"))
-register_kind(NoiseKind("ou", _zeros, _ou_sample, episode_start=lambda config, x, key: jnp.zeros_like(x),
-                        validate=_check_ou, summary="Ornstein-Uhlenbeck, reset to 0 at every episode start"))
-register_kind(NoiseKind("none", _zeros, lambda config, process, key: (process, 0.0, process),
-                        summary="no noise: the student's actor"))
+PARAMETER_NOISE = "adaptive-param"   # built in (it perturbs parameters, not actions)
 
 
 def perturb(params: Params, key: jax.Array, stddev: jax.Array) -> Params:
@@ -163,9 +78,14 @@ def perturb(params: Params, key: jax.Array, stddev: jax.Array) -> Params:
     return jax.tree_util.tree_unflatten(treedef, out)
 
 
+def names() -> list[str]:
+    """Every value ``noise.kind`` takes with this explorer, sorted."""
+    return sorted([*action_noise.kinds(), PARAMETER_NOISE])
+
+
 def init(config, actor_params: Params, action_size: int) -> NoiseState:
     n = config.noise
-    process = () if n.kind == PARAMETER_NOISE else kind(n.kind).init(config, action_size)
+    process = () if n.kind == PARAMETER_NOISE else action_noise.init(config, action_size)
     return NoiseState(process=process, stddev=jnp.asarray(n.stddev, jnp.float32), perturbed=actor_params,
                       distance=jnp.zeros((), jnp.float32))
 
@@ -174,14 +94,7 @@ def episode_start(config, state: NoiseState, actor_params: Params, key: jax.Arra
     """What baselines' ``agent.reset()`` does at the start of every episode (and a kind's new episode)."""
     if config.noise.kind == PARAMETER_NOISE:
         return state.replace(perturbed=perturb(actor_params, key, state.stddev))
-    start = kind(config.noise.kind).episode_start
-    return state.replace(process=start(config, state.process, key)) if start else state
-
-
-def sample(config, state: NoiseState, key: jax.Array) -> tuple[jax.Array, Any, NoiseState]:
-    """One step of the action-noise kind: (z, scale, the new state)."""
-    z, scale, process = kind(config.noise.kind).sample(config, state.process, key)
-    return z, scale, state.replace(process=process)
+    return state.replace(process=action_noise.episode_start(config, state.process, key))
 
 
 def act(config, state: NoiseState, actor_apply: Callable, actor_params: Params,
@@ -190,8 +103,8 @@ def act(config, state: NoiseState, actor_apply: Callable, actor_params: Params,
     if config.noise.kind == PARAMETER_NOISE:
         return jnp.clip(actor_apply(state.perturbed, obs), -1.0, 1.0), state
     mu = actor_apply(actor_params, obs)
-    z, scale, state = sample(config, state, key)
-    return jnp.clip(mu + scale * z, -1.0, 1.0), state
+    z, scale, process = action_noise.sample(config, state.process, key)
+    return jnp.clip(mu + scale * z, -1.0, 1.0), state.replace(process=process)
 
 
 def adapt(config, state: NoiseState, actor_apply: Callable, actor_params: Params,
@@ -237,20 +150,8 @@ class NoiseExplorer:
                      key)
 
     def metrics(self, carry: NoiseState) -> dict:
-        return {"param_noise_stddev": carry.stddev, "param_noise_distance": carry.distance,
-                **kind_metrics(self.config, carry)}
-
-
-def kind_metrics(config, state: NoiseState) -> dict:
-    """The action-noise kind's own per-cycle metrics (none for most)."""
-    if config.noise.kind == PARAMETER_NOISE:
-        return {}
-    own = kind(config.noise.kind).metrics
-    return own(config, state.process) if own else {}
-
-
-# The 2018 baselines' noises (the golden numbers' cases); ``names()`` lists every kind.
-NOISES = ("normal", "ou", "adaptive-param", "none")
+        own = {} if self.config.noise.kind == PARAMETER_NOISE else action_noise.metrics(self.config, carry.process)
+        return {"param_noise_stddev": carry.stddev, "param_noise_distance": carry.distance, **own}
 
 
 def _group_defaults(config) -> NoiseConfig:
@@ -258,40 +159,24 @@ def _group_defaults(config) -> NoiseConfig:
     return NoiseConfig(kind="normal", stddev=0.1) if config.preset == "modern" else NoiseConfig()
 
 
-def validate_kind(config) -> None:
-    """The checks of ``config.noise`` for an explorer that uses it (``ddpg``, ``own``)."""
+def _validate(config) -> None:
     n = config.noise
+    if config.run.method != NAME:
+        return
     if n.kind not in names():
         raise ValueError(f"unknown noise {n.kind!r}; valid noises: {', '.join(names())}")
-    if n.kind != "none":
-        positive("noise.stddev", n.stddev)
+    if strategy.student(config.student).stochastic:
+        raise ValueError(f"--student={config.student} explores with its own stochastic policy: use --method=own "
+                         f"(--noise=normal or pink: its sampling noise), not --method={NAME}")
     positive("noise.adapt_every", n.adapt_every)
     if n.kind == PARAMETER_NOISE:
+        positive("noise.stddev", n.stddev)
         if not (math.isfinite(n.adapt_coef) and n.adapt_coef >= 1):
             raise ValueError(f"noise.adapt_coef must be a finite number >= 1 (the stddev is multiplied or divided "
                              f"by it; 1 keeps it fixed), got {n.adapt_coef!r}")
     else:
-        kind(n.kind).validate(config)
-
-
-def _validate(config) -> None:
-    run = config.run
-    if run.method != NAME:
-        return
-    validate_kind(config)
-    if strategy.student(config.student).stochastic:
-        raise ValueError(f"--student={config.student} explores with its own stochastic policy: use --method=own "
-                         f"(--noise=normal or pink: its sampling noise), not --method={NAME}")
-    check_warmup(config)
-
-
-def check_warmup(config) -> None:
-    """An acting explorer's run must leave the warm-up of uniformly random actions before its budget ends."""
-    run = config.run
-    if run.warmup_steps and run.warmup_steps >= run.total_steps:
-        raise ValueError(f"run.warmup_steps={run.warmup_steps} is not below the budget of {run.total_steps} "
-                         f"env steps: the --method={run.method} run would act at random throughout (lower it with "
-                         f"--set run.warmup_steps=N, or raise --steps)")
+        action_noise.validate(config)
+    action_noise.check_warmup(config)
 
 
 NAME = "ddpg"

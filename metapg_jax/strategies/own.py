@@ -1,7 +1,7 @@
 """A stochastic student explores with its own policy: ``--method=own`` (SAC's exploration, ``--student=sac``).
 
 At every step the action is the student's ``sample_action(actor, s, z)`` (SAC: tanh(mean(s) + std(s) z)),
-with ``z`` from the ``noise`` group's kind (``metapg_jax.strategies.noise``): ``--noise=normal`` (the
+with ``z`` from the ``noise`` group's kind (``metapg_jax.action_noise``): ``--noise=normal`` (the
 default here) is the policy's own white Gaussian sampling, ``--noise=pink`` colors it (Eberhard et al., 2023,
 section 4: the colored sequence replaces the reparameterisation noise; ``noise.stddev`` is unused, the
 policy's std scales it). Only kinds whose ``z`` is standard normal at every step can be a policy's sampling
@@ -20,32 +20,30 @@ from typing import Any
 
 import jax
 
-from metapg_jax import strategy
+from metapg_jax import action_noise, strategy
 from metapg_jax.loop import Trainer
-from metapg_jax.strategies import noise
-from metapg_jax.strategies.noise import NoiseState
 
 
 @dataclasses.dataclass(frozen=True)
 class OwnPolicyExplorer:
     """The student's stochastic policy with the noise kind's ``z`` as its sampling noise (module docstring); an
-    ``ActingExplorer`` whose carry is the kind's state (a colored sequence, ...)."""
+    ``ActingExplorer`` whose carry is the kind's process state (a colored sequence, ...)."""
 
     config: Any
 
-    def init(self, trainer: Trainer, student, key: jax.Array) -> NoiseState:
-        return noise.init(self.config, student.actor, trainer.student.action_size)
+    def init(self, trainer: Trainer, student, key: jax.Array) -> Any:
+        return action_noise.init(self.config, trainer.student.action_size)
 
-    def episode_start(self, trainer: Trainer, carry: NoiseState, student, key: jax.Array) -> NoiseState:
-        return noise.episode_start(self.config, carry, student.actor, key)
+    def episode_start(self, trainer: Trainer, carry: Any, student, key: jax.Array) -> Any:
+        return action_noise.episode_start(self.config, carry, key)
 
-    def act(self, trainer: Trainer, carry: NoiseState, student, normalizer, obs, key: jax.Array):
+    def act(self, trainer: Trainer, carry: Any, student, normalizer, obs, key: jax.Array):
         learner = trainer.student
-        z, _, carry = noise.sample(self.config, carry, key)
+        z, _, carry = action_noise.sample(self.config, carry, key)
         return learner.sample_action(student.actor, learner.normalize(normalizer, obs), z), carry
 
-    def metrics(self, carry: NoiseState) -> dict:
-        return noise.kind_metrics(self.config, carry)
+    def metrics(self, carry: Any) -> dict:
+        return action_noise.metrics(self.config, carry)
 
 
 def _schedule(config):
@@ -61,15 +59,14 @@ def _validate(config) -> None:
     if not strategy.student(config.student).stochastic:
         raise ValueError(f"--method={NAME} samples the student's own stochastic policy, and --student="
                          f"{config.student} is deterministic: explore with --method=ddpg --noise=... instead")
-    if config.noise.kind not in noise.names():
-        raise ValueError(f"unknown noise {config.noise.kind!r}; valid noises: {', '.join(noise.names())}")
-    if config.noise.kind == noise.PARAMETER_NOISE or not noise.kind(config.noise.kind).policy_noise:
-        usable = [k.name for k in noise.kinds().values() if k.policy_noise]
-        raise ValueError(f"--noise={config.noise.kind} is not a policy's sampling noise (a standard normal at every "
-                         f"step, scaled by the policy); with --method={NAME}: {', '.join(usable)}")
-    noise.validate_kind(config)
-    noise.check_warmup(config)
-
+    known = action_noise.kinds()
+    usable = [name for name, k in known.items() if k.policy_noise]
+    if config.noise.kind not in usable:
+        what = "is not a policy's sampling noise (a standard normal at every step, scaled by the policy)" \
+            if config.noise.kind in known or config.noise.kind == "adaptive-param" else "is unknown"
+        raise ValueError(f"--noise={config.noise.kind} {what}; with --method={NAME}: {', '.join(sorted(usable))}")
+    action_noise.validate(config)
+    action_noise.check_warmup(config)
 
 NAME = "own"
 strategy.register_explorer(

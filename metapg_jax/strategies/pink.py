@@ -31,8 +31,7 @@ import jax.numpy as jnp
 import numpy as np
 from flax import struct
 
-from metapg_jax import strategy
-from metapg_jax.strategies import noise
+from metapg_jax import action_noise, strategy
 
 
 @dataclasses.dataclass(frozen=True)
@@ -97,6 +96,6 @@ def _validate(config) -> None:
 
 NAME = "pink"
 strategy.register_group(NAME, PinkConfig)
-noise.register_kind(noise.NoiseKind(
+action_noise.register_kind(action_noise.NoiseKind(
     NAME, _init, _sample, episode_start=_episode_start, policy_noise=True, validate=_validate,
     summary="colored noise ~ 1/f^beta, a sequence per episode and action dimension (Eberhard et al., 2023)"))

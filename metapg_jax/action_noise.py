@@ -1,0 +1,147 @@
+"""Action-noise processes: the registry of noise kinds that the acting explorers draw their noise from
+(``--noise=<kind>``), and the three plain ones.
+
+A *kind* (:class:`NoiseKind`) is a per-seed process state, an optional ``episode_start`` and a ``sample`` that
+gives each step's noise as ``z`` and a ``scale``. The DDPG baselines' explorer (``--method=ddpg``,
+``metapg_jax.strategies.noise``) acts with clip(mu(s) + scale * z); a stochastic student's own policy
+(``--method=own``, ``metapg_jax.strategies.own``) samples with ``z`` as its noise, for the kinds whose ``z`` is
+standard normal at every step (``policy_noise``). The kinds read the ``noise`` config group (the ``ddpg``
+explorer's) and, for settings of their own, a group they register (``strategy.register_group``).
+
+Built in here: ``normal`` (z ~ N(0, I), scale ``noise.stddev``), ``ou`` (Ornstein-Uhlenbeck,
+x <- x + theta (0 - x) dt + sigma sqrt(dt) N(0, I), reset to 0 at every episode start, as the 2018
+OpenAI baselines) and ``none`` (no noise). Each further kind is one file of ``metapg_jax.strategies`` that
+calls :func:`register_kind` (colored noise: ``pink.py``; per-episode scales: ``mixed.py``), or a plug-in's.
+Adaptive parameter noise perturbs the actor's parameters, not its actions: it is part of the ``ddpg``
+explorer, not a kind here.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from typing import Any, Callable
+
+import jax
+import jax.numpy as jnp
+
+from metapg_jax import strategy
+from metapg_jax.config import positive
+
+
+@dataclasses.dataclass(frozen=True)
+class NoiseKind:
+    """An action-noise process, chosen with ``--noise=<name>`` (module docstring). Functions of the whole config
+    (a kind reads ``config.noise`` and a group of its own), pure and jittable:
+
+    * ``init(config, action_size) -> process``: the per-seed state before the first episode;
+    * ``sample(config, process, key) -> (z, scale, process)``: one step's noise ``scale * z``, ``z`` of shape
+      ``(action_size,)``;
+    * ``episode_start(config, process, key) -> process`` (optional): at the first step of every episode;
+    * ``policy_noise``: ``z`` is N(0, 1) at every step and in every dimension and the kind is about ``z``, not its
+      scale: a stochastic student can sample with it (``--method=own``);
+    * ``validate(config)``: one-line ``ValueError`` for bad values, run when the kind is chosen;
+    * ``metrics(config, process) -> dict`` (optional): scalars of the process, added to each cycle's metrics.
+    """
+
+    name: str
+    init: Callable[[Any, int], Any]
+    sample: Callable[[Any, Any, jax.Array], tuple[jax.Array, Any, Any]]
+    episode_start: Callable[[Any, Any, jax.Array], Any] | None = None
+    policy_noise: bool = False
+    validate: Callable[[Any], None] = lambda config: None
+    metrics: Callable[[Any, Any], dict] | None = None
+    summary: str = ""
+
+
+_KINDS: dict[str, NoiseKind] = {}
+
+
+def register_kind(kind: NoiseKind) -> NoiseKind:
+    """Registers an action-noise kind (a name registered again is replaced: a plug-in re-imported)."""
+    _KINDS[kind.name] = kind
+    return kind
+
+
+def kinds() -> dict[str, NoiseKind]:
+    """Every registered kind (the built-in strategy files' once imported)."""
+    strategy.load_builtins()
+    return dict(_KINDS)
+
+
+def kind(name: str) -> NoiseKind:
+    """The kind registered as ``name``; a one-line ``ValueError`` naming the valid ones otherwise."""
+    known = kinds()
+    if name not in known:
+        raise ValueError(f"unknown noise {name!r}; valid noises: {', '.join(sorted(known))}")
+    return known[name]
+
+
+# -- a process in an explorer's carry ---------------------------------------------------------------------------
+def init(config, action_size: int) -> Any:
+    """The chosen kind's (``config.noise.kind``) per-seed state."""
+    return kind(config.noise.kind).init(config, action_size)
+
+
+def episode_start(config, process: Any, key: jax.Array) -> Any:
+    start = kind(config.noise.kind).episode_start
+    return start(config, process, key) if start else process
+
+
+def sample(config, process: Any, key: jax.Array) -> tuple[jax.Array, Any, Any]:
+    """One step: (z, scale, the new state)."""
+    return kind(config.noise.kind).sample(config, process, key)
+
+
+def metrics(config, process: Any) -> dict:
+    """The chosen kind's own per-cycle metrics (none for most)."""
+    own = kind(config.noise.kind).metrics
+    return own(config, process) if own else {}
+
+
+def validate(config) -> None:
+    """The checks of ``config.noise`` for a kind chosen by an acting explorer."""
+    n = config.noise
+    if n.kind != "none":
+        positive("noise.stddev", n.stddev)
+    kind(n.kind).validate(config)
+
+
+def check_warmup(config) -> None:
+    """An acting explorer's run must leave the warm-up of uniformly random actions before its budget ends."""
+    run = config.run
+    if run.warmup_steps and run.warmup_steps >= run.total_steps:
+        raise ValueError(f"run.warmup_steps={run.warmup_steps} is not below the budget of {run.total_steps} "
+                         f"env steps: the --method={run.method} run would act at random throughout (lower it with "
+                         f"--set run.warmup_steps=N, or raise --steps)")
+
+
+# -- the plain kinds ---------------------------------------------------------------------------------------------
+def _zeros(config, action_size: int) -> jax.Array:
+    """A zero vector of the action's shape (the process of kinds without state: it carries the shape)."""
+    return jnp.zeros((action_size,), jnp.float32)
+
+
+def _normal_sample(config, process, key):
+    return jax.random.normal(key, process.shape), config.noise.stddev, process
+
+
+def _ou_sample(config, x, key):
+    n = config.noise
+    x = x + n.ou_theta * (0.0 - x) * n.ou_dt + n.stddev * jnp.sqrt(n.ou_dt) * jax.random.normal(key, x.shape)
+    return x, 1.0, x
+
+
+def _check_ou(config) -> None:
+    n = config.noise
+    positive("noise.ou_dt", n.ou_dt)
+    if not (math.isfinite(n.ou_theta) and n.ou_theta >= 0):
+        raise ValueError(f"noise.ou_theta must be a finite number >= 0, got {n.ou_theta!r}")
+
+
+register_kind(NoiseKind("normal", _zeros, _normal_sample, policy_noise=True,
+                        summary="Gaussian: mu(s) + N(0, stddev^2) at every step"))
+register_kind(NoiseKind("ou", _zeros, _ou_sample, episode_start=lambda config, x, key: jnp.zeros_like(x),
+                        validate=_check_ou, summary="Ornstein-Uhlenbeck, reset to 0 at every episode start"))
+register_kind(NoiseKind("none", _zeros, lambda config, process, key: (process, 0.0, process),
+                        summary="no noise: the student's actor"))
