@@ -27,7 +27,7 @@ import sys
 import numpy as np
 
 from experiments.build import stats
-from experiments.build.grid import METHOD_NAMES, TASK_NAMES, noise_methods
+from experiments.build.grid import METHOD_NAMES, TASK_NAMES, noise_methods, task_name
 
 PROFILE_TAUS = np.linspace(0.0, 2.0, 81)
 
@@ -37,20 +37,23 @@ def grid_methods(grid: dict) -> list[str]:
     return list({m: 0 for row in grid["rows"] for m in row["methods"]})
 
 
-def grid_scores(grid: dict, anchors: dict[str, tuple[float, float]]) -> tuple[list[str], list[str], dict, list[str]]:
+def grid_scores(grid: dict, anchors: dict[str, tuple[float, float]],
+                labels: dict | None = None) -> tuple[list[str], list[str], dict, list[str]]:
     """(tasks, methods, scores, left_out): the tasks where every method has a finished cell and an anchor,
     the methods with a finished cell somewhere, {method: [normalised per-seed scores of each task]}, and the
-    tasks left out with why (as the tables name tasks and methods)."""
+    tasks left out with why (as the tables name tasks and methods; ``labels``: names for methods that
+    ``experiments.build.grid.METHOD_NAMES`` does not have)."""
+    labels = {**METHOD_NAMES, **(labels or {})}
     methods = [m for m in grid_methods(grid)
                if any(row["methods"].get(m, {}).get("status") == "done" for row in grid["rows"])]
     tasks, left_out = [], []
     for row in grid["rows"]:
         absent = [m for m in methods if row["methods"].get(m, {}).get("status") != "done"]
         if row["task"] not in anchors:
-            left_out.append(f"{TASK_NAMES.get(row['task'], row['task'])} (no normalisation anchors)")
+            left_out.append(f"{task_name(row['task'])} (no normalisation anchors)")
         elif absent:
-            left_out.append(f"{TASK_NAMES.get(row['task'], row['task'])} (no finished cell for "
-                            f"{', '.join(METHOD_NAMES.get(m, m) for m in absent)})")
+            left_out.append(f"{task_name(row['task'])} (no finished cell for "
+                            f"{', '.join(labels.get(m, m) for m in absent)})")
         else:
             tasks.append(row["task"])
     rows = {row["task"]: row for row in grid["rows"]}
@@ -58,8 +61,11 @@ def grid_scores(grid: dict, anchors: dict[str, tuple[float, float]]) -> tuple[li
     return tasks, methods, scores, left_out
 
 
-def report(grid: dict, anchors: dict[str, tuple[float, float]], scored=None) -> dict:
-    """The aggregate numbers of a grid (``grid_scores``'s tasks, or ``scored``: its result), JSON-ready."""
+def report(grid: dict, anchors: dict[str, tuple[float, float]], scored=None,
+           pairs: list[tuple[str, str]] | None = None) -> dict:
+    """The aggregate numbers of a grid (``grid_scores``'s tasks, or ``scored``: its result), JSON-ready.
+    ``pairs``: the (X, Y) whose probability of improvement is computed (default: each teacher against each noise
+    baseline; every ordered pair in a grid without both kinds)."""
     tasks, methods, scores, left_out = scored or grid_scores(grid, anchors)
     if not tasks:
         raise ValueError("no task has a finished cell for every method and normalisation anchors: "
@@ -73,9 +79,10 @@ def report(grid: dict, anchors: dict[str, tuple[float, float]], scored=None) -> 
         for name, statistic in stats.AGGREGATES.items():
             entry[name] = dict(zip(("point", "lo", "hi"), stats.aggregate_interval(scores[m], statistic)))
         out["methods"][m] = entry
-    noise = noise_methods(methods)
-    teachers = [m for m in methods if m not in noise]
-    pairs = [(x, y) for x in teachers for y in noise] or [(x, y) for x in methods for y in methods if x != y]
+    if pairs is None:
+        noise = noise_methods(methods)
+        teachers = [m for m in methods if m not in noise]
+        pairs = [(x, y) for x in teachers for y in noise] or [(x, y) for x in methods for y in methods if x != y]
     for x, y in pairs:
         point, lo, hi = stats.probability_of_improvement(scores[x], scores[y])
         out["improvement"].append({"x": x, "y": y, "point": point, "lo": lo, "hi": hi})
@@ -91,19 +98,20 @@ def markdown(rep: dict, title: str, labels: dict | None = None) -> str:
     labels = {**METHOD_NAMES, **(labels or {})}
     names = lambda ms: [labels.get(m, m) for m in ms]
     lines = [f"# {title}: aggregate scores over tasks", "",
-             f"Tasks: {', '.join(TASK_NAMES.get(t, t) for t in rep['tasks'])}"
+             f"Tasks: {', '.join(task_name(t) for t in rep['tasks'])}"
              + (f". Left out: {'; '.join(rep['left_out'])}." if rep["left_out"] else ".")
              + (f" Methods of the grid without a finished cell: {', '.join(names(rep['absent_methods']))}."
                 if rep.get("absent_methods") else ""), "",
              f"- {rep['definition']}.",
              "- anchors per task (random policy → 0, reference → 1): " + "; ".join(
-                 f"{TASK_NAMES.get(t, t)} {stats.fmt(a['random_return'])} → {stats.fmt(a['reference_return'])}"
+                 f"{task_name(t)} {stats.fmt(a['random_return'])} → {stats.fmt(a['reference_return'])}"
                  for t, a in rep["anchors"].items()) + " (results/normalisation.json).",
              *([f"- a method with no cell of its own on a task is scored with the cell it equals there: " + "; ".join(
                  f"{TASK_NAMES.get(k.split('/')[0], k.split('/')[0])} {labels.get(k.split('/')[1], k.split('/')[1])} = "
                  f"{labels.get(v, v)}" for k, v in rep["standing_for"].items()) + "."] if rep.get("standing_for") else []),
              *([f"- left out (not finished on every task): {', '.join(names(rep['variants_not_on_every_task']))}."]
                if rep.get("variants_not_on_every_task") else []),
+             *(f"- {note}" for note in rep.get("notes", [])),
              *([f"- built {rep['built']['date']} at commit {rep['built']['commit'][:7]}"
                 + (" (uncommitted changes)" if rep["built"]["dirty"] else "")
                 + f" from {rep['built']['grid']} and {rep['built']['anchors']}."] if "built" in rep else []), "",
@@ -112,12 +120,19 @@ def markdown(rep: dict, title: str, labels: dict | None = None) -> str:
         e = rep["methods"][m]
         lines.append(f"| {name} | {_interval(e['IQM'])} | {_interval(e['mean'])} | {_interval(e['optimality gap'])} "
                      f"| {', '.join(map(str, e['seeds_per_task']))} |")
+    # A report whose pairs name their reference (the benchmark's: its student's Gaussian noise, its best fixed
+    # noise) says which reference each Y is.
+    against = any("reference" in p for p in rep["improvement"])
     lines += ["", "## Probability of improvement", "",
               "P(X > Y): the chance that a seed of X ends above a seed of Y on a task drawn from the grid's tasks; "
               "0.5 = neither tends to end higher. 95% stratified bootstrap interval in brackets.", "",
-              "| X | Y | P(X > Y) |", "|---|---|---|"]
+              "| X | Y |" + (" Y is |" if against else "") + " P(X > Y) |", "|---|---|" + ("---|" if against else "")
+              + "---|"]
+    if not rep["improvement"]:
+        lines.append("| (no pair to compare) | | " + ("| " if against else "") + "|")
     for p in rep["improvement"]:
-        lines.append(f"| {labels.get(p['x'], p['x'])} | {labels.get(p['y'], p['y'])} | {_interval(p)} |")
+        lines.append(f"| {labels.get(p['x'], p['x'])} | {labels.get(p['y'], p['y'])} |"
+                     + (f" {p.get('reference', '')} |" if against else "") + f" {_interval(p)} |")
     return "\n".join(lines) + "\n"
 
 

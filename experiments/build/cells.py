@@ -14,7 +14,7 @@ from typing import Iterable
 
 import numpy as np
 
-from experiments.build.grid import BASELINE, META, METHODS, TASKS
+from experiments.build.grid import BASELINE, META, METHODS, TASKS, task_folder
 from experiments.build.stats import final_returns
 from metapg_jax.host import metric_rows, provenance, runfiles
 
@@ -98,13 +98,14 @@ def collect(preset_dir: str, tasks: Iterable[str] = TASKS, methods: Iterable[str
 
     With ``archive_dir`` (the committed copies, see ``archive_cell``), a cell that has no finished run
     under ``preset_dir`` is read from ``<archive_dir>/<task>/<method>`` when a finished one is archived
-    there: run folders are not committed, so a fresh clone has only the archive."""
+    there: run folders are not committed, so a fresh clone has only the archive. (A ``gym:`` task's folder is
+    ``grid.task_folder``'s name for it.)"""
     out = {}
     for task in tasks:
         for method in methods:
-            r = load_run(os.path.join(preset_dir, task, method), task, method)
+            r = load_run(os.path.join(preset_dir, task_folder(task), method), task, method)
             if archive_dir is not None and (r is None or not r.complete):
-                a = load_run(os.path.join(archive_dir, task, method), task, method)
+                a = load_run(os.path.join(archive_dir, task_folder(task), method), task, method)
                 if a is not None and a.complete:
                     r = a
             if r is not None:
@@ -244,6 +245,8 @@ def cell_provenance(r: RunResult) -> dict:
         "preset": r.config.get("preset"), "run_args": r.run_args, "config": r.config,
         "machine": prov.get("machine") or {k: r.info.get(k) for k in ("jax_version", "backend", "devices")},
         "wall_seconds": wall,
+        # the process CPU time (user + system, all threads) of the recorded calls that measured it (reproduce.json)
+        "cpu_seconds": prov.get("cpu_seconds"), "cpu_seconds_calls": prov.get("cpu_seconds_calls"),
         # every call's training time, compile excluded, from the metrics rows: also the calls a shutdown
         # killed before reproduce.json recorded them (which wall_seconds misses)
         "train_seconds_all_calls": r.train_seconds, "train_seconds_all_calls_exact": r.train_seconds_exact,

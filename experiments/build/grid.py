@@ -1,11 +1,14 @@
 """The paper's task x method grid: task and method names, each method's ``experiments.run`` options,
-and the DDPG baseline each preset's Meta is compared against.
+and the DDPG baseline each preset's Meta is compared against; the exploration benchmark's strategies per
+student (``STRATEGIES``).
 
 Shared by everything that runs or reads the grid (``experiments.reproduce``, ``experiments.build.cells``,
-``experiments.build.tables``, ``experiments.build.figures``, ``experiments.artefacts``).
+``experiments.build.tables``, ``experiments.build.figures``, ``experiments.artefacts``, ``experiments.benchmark``).
 """
 
 from __future__ import annotations
+
+import re
 
 # In the paper's Table 2 order.
 TASKS = ("inverted_double_pendulum", "inverted_pendulum", "hopper", "pendulum", "halfcheetah", "reacher")
@@ -24,14 +27,29 @@ METHODS = {
     # sigma ~ U[0.001, 0.4] (metapg_jax/strategies/pink.py, mixed.py).
     "td3-pink": ["--method=ddpg", "--noise=pink", "--set", "noise.stddev=0.1"],
     "td3-mixed": ["--method=ddpg", "--noise=mixed"],
+    # Ornstein-Uhlenbeck noise with OpenAI baselines' (2018) theta 0.15 and dt 0.01 (the noise group's defaults,
+    # docs/strategies.md) at TD3's scale sigma 0.1, so that TD3's action noises differ in their process only.
+    "td3-ou": ["--method=ddpg", "--noise=ou", "--set", "noise.stddev=0.1"],
+    # Adaptive parameter noise (Plappert et al., 2018) with the action-space target 0.1, TD3's Gaussian scale
+    # (the paper preset's DDPG baseline, ddpg-paramnoise, targets baselines' 0.2).
+    "td3-paramnoise": ["--method=ddpg", "--noise=adaptive-param", "--set", "noise.stddev=0.1"],
+    # The tuned teacher: the screen's schedule (--preset=tuned, METHOD_PRESETS), whatever the grid's preset.
+    "meta-tuned": ["--method=meta", "--teacher=independent"],
     # SAC explores with its own policy, its sampling noise white or colored (metapg_jax/strategies/own.py).
     "sac-own": ["--method=own"],
     "sac-pink": ["--method=own", "--noise=pink"],
+    # The paper's teacher collecting a SAC student's data (the student itself never acts during training).
+    "sac-meta": ["--method=meta", "--teacher=independent"],
 }
+# A grid method that runs under a preset of its own, overriding the grid's (``experiments.reproduce --preset``, the
+# benchmark's): its cells get ``--preset=<this>`` (experiments.training.grid_cells.cell_argv).
+METHOD_PRESETS = {"meta-tuned": "tuned"}
 METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta (variance)",
                 "ddpg-paramnoise": "DDPG (param noise)", "ddpg-normal": "DDPG (normal noise)",
                 "td3-normal": "TD3 (normal noise)", "td3-pink": "TD3 (pink noise)", "td3-mixed": "TD3 (mixed scales)",
-                "sac-own": "SAC (own policy)", "sac-pink": "SAC (pink noise)"}
+                "sac-own": "SAC (own policy)", "sac-pink": "SAC (pink noise)", "td3-ou": "TD3 (OU noise)",
+                "td3-paramnoise": "TD3 (param noise)", "meta-tuned": "Meta (tuned)",
+                "sac-meta": "SAC + Meta (independent)"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
 # for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/strategies/noise.py); the tuned
@@ -44,10 +62,29 @@ GRIDS = {"ddpg": ("meta-independent", "meta-variance", "ddpg-paramnoise", "ddpg-
          "td3": ("meta-independent", "td3-normal", "td3-pink", "td3-mixed"),
          "sac": ("sac-own", "sac-pink")}
 STUDENT_BASELINES = {"td3": "td3-normal", "sac": "sac-own"}
-# The student of a grid method that only one student's grid has (the others: DDPG's).
-STUDENT_OF = {m: student for student, methods in GRIDS.items() if student != "ddpg" for m in methods
-              if m not in GRIDS["ddpg"]}
+# The exploration benchmark (experiments.benchmark): each student's strategies, its Gaussian-noise baseline
+# (STUDENT_BASELINES) first, every other one judged against it. TD3: Gaussian, OU, adaptive parameter noise,
+# colored noise, per-episode scales, the paper's teacher and the tuned teacher; SAC: its own policy with white
+# or colored sampling noise, and the paper's teacher.
+STRATEGIES = {"td3": ("td3-normal", "td3-ou", "td3-paramnoise", "td3-pink", "td3-mixed", "meta-independent",
+                      "meta-tuned"),
+              "sac": ("sac-own", "sac-pink", "sac-meta")}
+# The student of a grid method that only one student's grid or strategies have (the others: DDPG's).
+STUDENT_OF = {m: student for table in (GRIDS, STRATEGIES) for student, methods in table.items() if student != "ddpg"
+              for m in methods if m not in GRIDS["ddpg"]}
 STUDENT_NAMES = {"ddpg": "DDPG", "td3": "TD3", "sac": "SAC"}
+
+
+def task_name(task: str) -> str:
+    """How tables name a task: the paper's name, or a ``gym:<Id>`` task's gymnasium id with its arguments."""
+    return TASK_NAMES.get(task) or (task[4:] if task.startswith("gym:") else task)
+
+
+def task_folder(task: str) -> str:
+    """A task's folder name in a grid (``<runs>/<preset>/<task>/<method>``): the task itself, or a ``gym:`` task
+    with everything but letters, digits and ``_.=+-`` made a hyphen (as ``experiments.run`` names its default
+    folder: ``gym:Ant-v5(ctrl_cost_weight=0.1)`` -> ``gym-Ant-v5-ctrl_cost_weight=0.1``)."""
+    return re.sub(r"[^\w.=+-]+", "-", task).strip("-")
 
 
 def noise_methods(methods) -> list[str]:

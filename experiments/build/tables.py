@@ -93,25 +93,31 @@ def verdict_families(rows: list[dict], methods: Sequence[str], baseline: str,
     ``EQUIVALENCE_MARGIN`` of the range; a task without anchors is never judged equivalent."""
     noise = noise_methods(methods)
     teachers = [m for m in methods if m not in noise]
-    families = []
-    for base in [baseline] + [m for m in noise if m != baseline]:
-        compared, pairs, skipped = [], [], []
-        for row in rows:
-            b = row["methods"].get(base, {})
-            for m in (x for x in (teachers or methods) if x != base):
-                a = row["methods"].get(m, {})
-                if a.get("status") != "done" or b.get("status") != "done":
-                    continue
-                if a["budget"] != b["budget"]:  # never a test between cells of different budgets (mid-extension)
-                    skipped.append({"task": row["task"], "method": m, "why": "budgets differ"})
-                    continue
-                low_high = (anchors or {}).get(row["task"])
-                margin = None if low_high is None else EQUIVALENCE_MARGIN * (low_high[1] - low_high[0])
-                compared.append({"task": row["task"], "method": m})
-                pairs.append((a["per_seed"], b["per_seed"], margin))
-        families.append({"baseline": base, "fixed_in_advance": base == baseline, "skipped": skipped,
-                         "comparisons": [{**c, **j} for c, j in zip(compared, judge_family(pairs))]})
-    return families
+    return [verdict_family(rows, base, [x for x in (teachers or methods) if x != base], anchors, base == baseline)
+            for base in [baseline] + [m for m in noise if m != baseline]]
+
+
+def verdict_family(rows: list[dict], base: str, compared_methods: Sequence[str],
+                   anchors: dict[str, tuple[float, float]] | None = None, fixed_in_advance: bool = True) -> dict:
+    """One family of corrected verdicts (``stats.judge_family``): each of ``compared_methods`` against ``base`` on
+    every task of ``rows`` (``table2_rows``) where both cells finished at the same budget (cells of different
+    budgets are listed as skipped); equivalence margins from ``anchors`` as in ``verdict_families``."""
+    compared, pairs, skipped = [], [], []
+    for row in rows:
+        b = row["methods"].get(base, {})
+        for m in compared_methods:
+            a = row["methods"].get(m, {})
+            if a.get("status") != "done" or b.get("status") != "done":
+                continue
+            if a["budget"] != b["budget"]:  # never a test between cells of different budgets (mid-extension)
+                skipped.append({"task": row["task"], "method": m, "why": "budgets differ"})
+                continue
+            low_high = (anchors or {}).get(row["task"])
+            margin = None if low_high is None else EQUIVALENCE_MARGIN * (low_high[1] - low_high[0])
+            compared.append({"task": row["task"], "method": m})
+            pairs.append((a["per_seed"], b["per_seed"], margin))
+    return {"baseline": base, "fixed_in_advance": fixed_in_advance, "skipped": skipped,
+            "comparisons": [{**c, **j} for c, j in zip(compared, judge_family(pairs))]}
 
 
 def verdicts_markdown(families: list[dict]) -> list[str]:
@@ -151,7 +157,8 @@ def cell_text(cell: dict) -> str:
     return f"{fmt(cell['mean'])} ± {fmt(cell['std'])}"
 
 
-def _ci_text(cell: dict) -> str:
+def ci_text(cell: dict) -> str:
+    """A cell's 95% CI column: '[lo, hi] (n=N)', or 'not run' / 'incomplete'."""
     if cell["status"] != "done":
         return cell["status"] if cell["status"] == "not run" else "incomplete"
     if cell["ci95"] is None:
@@ -225,7 +232,7 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
     md += ["", "## 95% confidence intervals", "", "| task | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
     for row in rows:
         md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
-                  " | ".join(_ci_text(row["methods"][m]) for m in methods) + " |")
+                  " | ".join(ci_text(row["methods"][m]) for m in methods) + " |")
     md += [""] + verdicts_markdown(families)
     md.append(footer)
     paths = [os.path.join(out_dir, n) for n in ("table2.md", "table2.json", "table2_per_seed.csv")]

@@ -1,23 +1,45 @@
-"""A grid's cells, as ``experiments.reproduce`` and ``experiments.screen`` run them: each cell's folder and state
-(new, resume, extend, done), its ``experiments.run`` command line, the plan checked before the first cell runs,
-the run itself with its ``reproduce.json`` record (commit, dirty diff, wall time) and its archive; cell by cell
-here or as Ray tasks."""
+"""A grid's cells, as ``experiments.reproduce``, ``experiments.screen`` and ``experiments.benchmark`` run them:
+each cell's folder and state (new, resume, extend, done), its ``experiments.run`` command line, the plan checked
+before the first cell runs, the run itself with its ``reproduce.json`` record (commit, dirty diff, wall and CPU
+time) and its archive; cell by cell here or as Ray tasks (``run_cells``, ``run_cells_ray``: cells that may each
+carry their own grid options, e.g. one student's per cell; ``run_grid``, ``run_grid_ray``: a task x method grid)."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import shlex
 import sys
 import time
+from typing import NamedTuple
 
 from experiments.build.cells import archive_cell, archive_dir_for, read_json
-from experiments.build.grid import METHODS, baseline_for
+from experiments.build.grid import METHOD_PRESETS, METHODS, baseline_for, task_folder
 from experiments.training.args import RUN_ARGS
 
 
+class Cell(NamedTuple):
+    """One cell to plan and run: the grid's options (``experiments.reproduce``'s parser: folders, preset, student,
+    seeds, budget, overrides, launcher), the task, the grid method and its run options (None: ``METHODS[method]``);
+    ``key``: how the report returned by ``run_cells`` names it; ``tag``: how the progress lines name it."""
+
+    args: argparse.Namespace
+    task: str
+    method: str
+    options: tuple[str, ...] | None = None
+    key: tuple = ()
+    tag: str = ""
+
+
+def grid_cell(args: argparse.Namespace, task: str, method: str, options=None) -> Cell:
+    """A task x method grid's cell, named (task, method) in the report and ``<preset>/<task>/<method>`` in the lines."""
+    return Cell(args, task, method, None if options is None else tuple(options), (task, method),
+                f"{args.preset}/{task}/{method}")
+
+
 def cell_dir(runs_dir: str, preset: str, task: str, method: str) -> str:
-    return os.path.join(runs_dir, preset, task, method)
+    return os.path.join(runs_dir, preset, task_folder(task), method)
 
 
 def cell_state(path: str) -> str:
@@ -37,12 +59,21 @@ def cell_state(path: str) -> str:
 def finished_at_budget(args: argparse.Namespace, task: str, method: str) -> bool:
     """Whether the cell's run folder or its archived copy finished at (at least) the requested budget."""
     wanted = wanted_budget(args, task)
-    for path in (cell_dir(args.runs_dir, args.preset, task, method),
-                 os.path.join(archive_dir_for(args.results_dir, args.preset), task, method)):
+    for path in (cell_dir(args.runs_dir, args.preset, task, method), archived_dir(args, task, method)):
         summary = read_json(os.path.join(path, "summary.json"))
         if summary and summary["env_steps"] >= wanted:
             return True
     return False
+
+
+def archived_dir(args: argparse.Namespace, task: str, method: str) -> str:
+    """Where a finished cell is archived: ``<results>/cells/<task>/<method>`` (``cells.archive_dir_for``)."""
+    return os.path.join(archive_dir_for(args.results_dir, args.preset), task_folder(task), method)
+
+
+def cell_preset(args: argparse.Namespace, method: str) -> str:
+    """The preset a cell runs under: the grid method's own (``METHOD_PRESETS``: the tuned teacher), else the grid's."""
+    return METHOD_PRESETS.get(method, args.preset)
 
 
 def wanted_budget(args: argparse.Namespace, task: str) -> int:
@@ -56,9 +87,10 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
               options: list[str] | None = None) -> list[str]:
     """The explicit ``experiments.run`` options of a cell (the same for a fresh start and a resume; an
     extension names the new budget). ``options`` replaces the grid method's ``METHODS[method]`` (a grid of
-    other variants, e.g. ``experiments.screen``'s)."""
+    other variants, e.g. ``experiments.screen``'s). The preset is ``cell_preset``'s: a grid method with a preset
+    of its own keeps it whatever the grid's."""
     options = METHODS[method] if options is None else options
-    argv = [f"--env={task}", *options, f"--preset={args.preset}", f"--seeds={args.seeds}",
+    argv = [f"--env={task}", *options, f"--preset={cell_preset(args, method)}", f"--seeds={args.seeds}",
             f"--seed={args.seed}", f"--source={args.source}"]
     if task != "pendulum":  # named always: experiments.run's own default, 'auto', depends on the backend
         argv.append(f"--physics={args.physics}")
@@ -95,8 +127,10 @@ def requested_config(args: argparse.Namespace, task: str, method: str, options: 
 
 
 def write_cell_record(out: str, argv: list[str], status: int, seconds: float, started: dict,
-                       diff: str = "") -> None:
-    """``reproduce.json`` in the cell: commit, machine, command, status and accumulated wall time; a call
+                       diff: str = "", cpu_seconds: float | None = None) -> None:
+    """``reproduce.json`` in the cell: commit, machine, command, status and accumulated wall time (and CPU time:
+    ``cpu_seconds``, the process's user + system time over the call, all its threads; the top-level sum counts
+    the calls that recorded it, ``cpu_seconds_calls`` of them); a call
     started from a tree with uncommitted code changes stores them (``diff``, taken when it started) beside the
     record as ``uncommitted-<call>.diff``, named in its call entry, and archived with the cell.
 
@@ -111,6 +145,8 @@ def write_cell_record(out: str, argv: list[str], status: int, seconds: float, st
     calls = read_json(path).get("calls", [])
     call = {"argv": argv, "status": status, "wall_seconds": round(seconds, 2), "commit": started["commit"],
             "dirty": started["dirty"], "ended": time.strftime("%Y-%m-%dT%H:%M:%S%z")}
+    if cpu_seconds is not None:
+        call["cpu_seconds"] = round(cpu_seconds, 2)
     if started["dirty"]:
         call["diff"] = f"uncommitted-{len(calls) + 1}.diff"
         with open(os.path.join(out, call["diff"]), "w") as f:
@@ -122,9 +158,11 @@ def write_cell_record(out: str, argv: list[str], status: int, seconds: float, st
     first = ({"commit": cfg["commit"], "dirty": cfg.get("dirty", calls[0].get("dirty"))} if cfg.get("commit") else
              {"commit": calls[0].get("commit", started["commit"]), "dirty": calls[0].get("dirty", started["dirty"])})
     commits = {c["commit"] for c in calls if c.get("commit")} | {first["commit"]}
+    cpu = [c["cpu_seconds"] for c in calls if "cpu_seconds" in c]
     runfiles.write_json_atomic(path, {
         **started, **first, "commits": sorted(c for c in commits if c),
-        "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 2), "calls": calls})
+        "wall_seconds": round(sum(c["wall_seconds"] for c in calls), 2),
+        **({"cpu_seconds": round(sum(cpu), 2), "cpu_seconds_calls": len(cpu)} if cpu else {}), "calls": calls})
 
 
 def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[str] | None = None) -> dict:
@@ -133,7 +171,7 @@ def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[st
     ``options``: the cell's run options instead of ``METHODS[method]`` (``cell_argv``)."""
     out = cell_dir(args.runs_dir, args.preset, task, method)
     state = cell_state(out)
-    archived = os.path.join(archive_dir_for(args.results_dir, args.preset), task, method)
+    archived = archived_dir(args, task, method)
     if state == "new" and os.path.exists(os.path.join(archived, "summary.json")):
         out, state = archived, "done"  # finished in an earlier clone; its run folder is not committed
     wanted = wanted_budget(args, task)
@@ -175,7 +213,7 @@ def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[st
     verb = f"extending from {s['env_steps']:,} to {wanted:,} steps" if state == "extend" else \
         {"resume": "resuming", "restart": "restarting (no checkpoint stored)", "new": "running"}[state]
     return {"state": state, "out": out, "archived": archived, "argv": argv,
-            "message": f"{verb}: python -m experiments.run {' '.join(argv)}"}
+            "message": f"{verb}: python -m experiments.run {shlex.join(argv)}"}
 
 
 def run_cell(args: argparse.Namespace, task: str, method: str, plan: dict) -> int:
@@ -185,14 +223,14 @@ def run_cell(args: argparse.Namespace, task: str, method: str, plan: dict) -> in
     from metapg_jax.host import provenance
 
     out, argv = plan["out"], plan["argv"]
-    started, t0 = provenance.record(), time.perf_counter()
+    started, t0, cpu0 = provenance.record(), time.perf_counter(), time.process_time()
     diff = provenance.uncommitted_diff() if started["dirty"] else ""
     try:
         code = run_lib.main(argv)
     except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed (e.g. while compiling)
         code = 130
     if os.path.isdir(out):
-        write_cell_record(out, argv, code, time.perf_counter() - t0, started, diff)
+        write_cell_record(out, argv, code, time.perf_counter() - t0, started, diff, time.process_time() - cpu0)
         archive_cell(out, plan["archived"], method, baseline_for(args.preset, args.student))
     return code
 
@@ -202,23 +240,29 @@ def outcome(plan: dict, code: int) -> str:
 
 
 def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
-    """Runs the grid cell by cell; returns (exit status, {cell: what happened})."""
+    """Runs the task x method grid cell by cell (``run_cells``); returns (exit status, {(task, method): what
+    happened})."""
+    return run_cells([grid_cell(args, t, m) for t in tasks for m in methods], dry_run=args.dry_run)
+
+
+def run_cells(cells: list[Cell], dry_run: bool = False) -> tuple[int, dict]:
+    """Runs the cells one after another in this process (each planned from what is on disk when its turn comes);
+    returns (exit status, {cell key: what happened}). ``dry_run``: plan and print only."""
     status, report = 0, {}
-    cells = [(t, m) for t in tasks for m in methods]
-    for i, (task, method) in enumerate(cells, 1):
-        tag = f"[{i}/{len(cells)}] {args.preset}/{task}/{method}"
-        plan = plan_cell(args, task, method)
+    for i, cell in enumerate(cells, 1):
+        tag = f"[{i}/{len(cells)}] {cell.tag}"
+        plan = plan_cell(cell.args, cell.task, cell.method, cell.options)
         print(f"{tag}: {plan['message']}", flush=True)
         if plan["argv"] is None:
-            report[(task, method)] = "skipped"
+            report[cell.key] = "skipped"
             continue
-        if args.dry_run:
-            report[(task, method)] = f"would {plan['state']}"
+        if dry_run:
+            report[cell.key] = f"would {plan['state']}"
             continue
-        code = run_cell(args, task, method, plan)
+        code = run_cell(cell.args, cell.task, cell.method, plan)
         if code == 0 and os.path.exists(os.path.join(plan["archived"], "summary.json")):
             print(f"{tag}: finished; results archived in {plan['archived']}", flush=True)
-        report[(task, method)] = outcome(plan, code)
+        report[cell.key] = outcome(plan, code)
         if code in (130, 143):  # Ctrl-C or SIGTERM: the grid stops too
             print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
             return code, report
@@ -231,64 +275,70 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
     return status, report
 
 
-def _ray_cell(args: argparse.Namespace, task: str, method: str, cwd: str) -> tuple[dict, int]:
+def _ray_cell(cell: Cell, cwd: str) -> tuple[dict, int]:
     """A cell as a Ray task: planned again from what is on disk (a task retried after its worker died
     resumes from the cell's last checkpoint), then ``run_cell``."""
     os.chdir(cwd)  # the grid's folders are relative to the driver's working directory
-    plan = plan_cell(args, task, method)
+    plan = plan_cell(cell.args, cell.task, cell.method, cell.options)
     if plan["argv"] is None:
         return plan, 0
-    return plan, run_cell(args, task, method, plan)
+    return plan, run_cell(cell.args, cell.task, cell.method, plan)
 
 
 def run_grid_ray(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
-    """Every cell that has work left as a Ray task with its CPU and GPU needs declared; returns
-    (exit status, {cell: what happened}) like ``run_grid``."""
+    """Every cell of the task x method grid that has work left as a Ray task (``run_cells_ray``); returns
+    (exit status, {(task, method): what happened}) like ``run_grid``."""
+    return run_cells_ray([grid_cell(args, t, m) for t in tasks for m in methods], args)
+
+
+def run_cells_ray(cells: list[Cell], launcher: argparse.Namespace) -> tuple[int, dict]:
+    """Every cell that has work left as a Ray task with its CPU and GPU needs declared (``launcher``'s
+    ``--ray-*`` options, ``experiments.reproduce``'s); returns (exit status, {cell key: what happened}) like
+    ``run_cells``."""
     import ray
 
     status, report = 0, {}
-    cells = [(t, m) for t in tasks for m in methods]
-    tags = {c: f"[{i}/{len(cells)}] {args.preset}/{c[0]}/{c[1]}" for i, c in enumerate(cells, 1)}
+    tags = {cell.key: f"[{i}/{len(cells)}] {cell.tag}" for i, cell in enumerate(cells, 1)}
     pending = []
     for cell in cells:
-        plan = plan_cell(args, *cell)
-        print(f"{tags[cell]}: {plan['message'] if plan['argv'] is None else 'submitted to Ray: ' + plan['message']}",
-              flush=True)
+        plan = plan_cell(cell.args, cell.task, cell.method, cell.options)
+        print(f"{tags[cell.key]}: "
+              f"{plan['message'] if plan['argv'] is None else 'submitted to Ray: ' + plan['message']}", flush=True)
         if plan["argv"] is None:
-            report[cell] = "skipped"
+            report[cell.key] = "skipped"
         else:
             pending.append(cell)
     if not pending:
         return 0, report
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # the repository
-    started_here = args.ray_address is None
-    ray.init(address=args.ray_address, include_dashboard=False, log_to_driver=True,
+    started_here = launcher.ray_address is None
+    ray.init(address=launcher.ray_address, include_dashboard=False, log_to_driver=True,
              runtime_env={"env_vars": {"PYTHONPATH": os.pathsep.join(p for p in (root, os.environ.get("PYTHONPATH"))
                                                                       if p)}})
     try:
-        remote = ray.remote(max_retries=args.ray_retries)(_ray_cell).options(
-            num_cpus=args.ray_cpus_per_cell, num_gpus=args.ray_gpus_per_cell)
-        refs = {remote.remote(args, task, method, os.getcwd()): (task, method) for task, method in pending}
-        print(f"ray: {len(refs)} cell(s) on {'a local instance' if started_here else args.ray_address} "
+        remote = ray.remote(max_retries=launcher.ray_retries)(_ray_cell).options(
+            num_cpus=launcher.ray_cpus_per_cell, num_gpus=launcher.ray_gpus_per_cell)
+        refs = {remote.remote(cell, os.getcwd()): cell.key for cell in pending}
+        print(f"ray: {len(refs)} cell(s) on {'a local instance' if started_here else launcher.ray_address} "
               f"({ray.cluster_resources().get('CPU', 0):g} CPUs, {ray.cluster_resources().get('GPU', 0):g} GPUs; "
-              f"{args.ray_cpus_per_cell:g} CPU and {args.ray_gpus_per_cell:g} GPU per cell)", flush=True)
+              f"{launcher.ray_cpus_per_cell:g} CPU and {launcher.ray_gpus_per_cell:g} GPU per cell)", flush=True)
         waiting = list(refs)
         try:
             while waiting:
                 done, waiting = ray.wait(waiting, num_returns=1)
-                cell = refs[done[0]]
+                key = refs[done[0]]
                 try:
                     plan, code = ray.get(done[0])
                 except Exception as err:  # noqa: BLE001 - the task failed past its retries: report, go on
-                    print(f"{tags[cell]}: failed on Ray: {type(err).__name__}: {str(err).splitlines()[0][:300]}",
+                    print(f"{tags[key]}: failed on Ray: {type(err).__name__}: {str(err).splitlines()[0][:300]}",
                           file=sys.stderr, flush=True)
-                    report[cell], status = "failed", status or 1
+                    report[key], status = "failed", status or 1
                     continue
-                report[cell] = outcome(plan, code)
+                report[key] = outcome(plan, code)
                 if code == 0:
-                    print(f"{tags[cell]}: finished; results archived in {plan['archived']}", flush=True)
+                    print(f"{tags[key]}: finished; results archived in {plan['archived']}", flush=True)
                 else:
-                    print(f"{tags[cell]}: stopped with exit {code}", file=sys.stderr, flush=True)
+                    print(f"{tags[key]}: stopped with exit {code}", file=sys.stderr, flush=True)
                     status = status or code
         except KeyboardInterrupt:  # the tasks get Ctrl-C too: each checkpoints its chunk in flight and stops
             for ref in waiting:

@@ -1,0 +1,380 @@
+"""The exploration benchmark in one command: which exploration should an off-policy learner use, and by how much
+does it matter? Plans students x strategies x tasks x seeds at a budget, runs the cells (or resumes, or skips
+them), archives each with its provenance and rebuilds ``results/<name>/``.
+
+    python -m experiments.benchmark --dry-run --no-calibrate     # the plan: each cell's state and command
+    python -m experiments.benchmark --dry-run                    # the same with a calibrated CPU-time estimate
+    python -m experiments.benchmark                              # the default plan (many CPU hours), resumable
+    python -m experiments.benchmark --tasks hopper,gym:Walker2d-v5 --students td3 --strategies td3-pink,meta-independent
+    python -m experiments.benchmark --launcher ray --ray-address auto
+    python -m experiments.benchmark --artefacts-only             # rebuild results/exploration from what is stored
+
+The default plan: the paper's six tasks (``experiments.build.grid.TASKS``), both students (TD3, SAC) with every one
+of their strategies (``experiments.build.grid.STRATEGIES``: TD3 with Gaussian, Ornstein-Uhlenbeck, adaptive
+parameter and colored noise, per-episode noise scales, the paper's teacher and the tuned teacher; SAC with its own
+policy, white or colored, and the paper's teacher), 10 seeds per cell from base seed 1000 (one no earlier grid in
+``results/`` used), 300,000 env steps per seed, MuJoCo's C engine, the paper preset (the tuned teacher: its own
+preset). A benchmark *entry* is a (student, grid method) pair; each student's cells are a grid of their own,
+``<runs-dir>/<student>/paper/<task>/<method>`` (default ``runs/benchmark-<name>``), archived in
+``<results-dir>/<student>/cells/<task>/<method>`` (default ``results/<name>``), so the same strategy can be an entry
+of two students.
+
+Every cell is an ``experiments.reproduce`` cell (``experiments.training.grid_cells``): planned from what is on disk
+(done: skipped; a checkpoint: resumed; a shorter finished run: extended; else run), run by ``experiments.run`` in
+this process or, with ``--launcher ray``, as a Ray task (reproduce's options), recorded in ``reproduce.json``
+(commit, dirty diff, command, wall and CPU time) and archived as soon as it finishes. Every cell's config is
+validated before the first one runs (bad input: one ``error:`` line, exit 2). The artefacts
+(``experiments.build.benchmark``): per task the final returns and the verdicts against the student's Gaussian
+noise, the aggregate over the tasks, sample-efficiency curves, the cost of each cell, ``README.md`` and
+``manifest.json`` (docs/reproducing.md, "The exploration benchmark").
+
+``--dry-run`` prints the plan and, unless ``--no-calibrate``, an estimated time per cell: each entry with work left
+runs ``experiments.run`` in a subprocess for a few chunks of ``--calibration-steps`` env steps on one task (its real
+config otherwise: seeds, networks, replay capacity; a cold compile), and each other task with work left runs its
+student's baseline the same way; a cell's estimate is the calibration task's compile time and per-step time of its
+entry, scaled by the task's over the calibration task's for the baseline, times its remaining steps; CPU time is
+that times the entry's CPU utilisation during its calibration.
+
+Exit status: 0 every planned cell finished (``--dry-run``: the plan printed); 1 ``--dry-run`` whose calibration
+runs all failed; 2 bad input; 3 some cell stopped on non-finite parameters (the others
+still ran); 130 interrupted (143 by SIGTERM) (the artefacts are still rebuilt; run the same command again to
+resume).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+from experiments import reproduce
+from experiments.build import benchmark as artefacts
+from experiments.build.grid import STRATEGIES, STUDENT_NAMES, TASKS, task_folder
+from experiments.training import grid_cells
+
+DEFAULT_NAME = "exploration"
+DEFAULT_STUDENTS = ("td3", "sac")
+DEFAULT_SEEDS = 10
+DEFAULT_SEED = 1000  # results/ has base seeds 0 (Table 2, modern, mujoco, td3, the screen) and 100 (tuned)
+DEFAULT_STEPS = 300_000
+CALIBRATION_STEPS = 3000
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    strategies = "; ".join(f"{s}: {', '.join(m)}" for s, m in STRATEGIES.items())
+    p = argparse.ArgumentParser(prog="python -m experiments.benchmark", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--tasks", default=",".join(TASKS),
+                   help=f"comma-separated tasks, {', '.join(TASKS)} or gym:<Id> (default: the paper's six)")
+    p.add_argument("--students", default=",".join(DEFAULT_STUDENTS),
+                   help=f"comma-separated students (default {','.join(DEFAULT_STUDENTS)})")
+    p.add_argument("--strategies", default=None,
+                   help=f"comma-separated strategies (grid methods) of those students (default: all; each student's "
+                        f"Gaussian-noise baseline is always planned): {strategies}")
+    p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, help=f"seeds per cell (default {DEFAULT_SEEDS})")
+    p.add_argument("--seed", type=int, default=DEFAULT_SEED,
+                   help=f"base PRNG seed of every cell (default {DEFAULT_SEED})")
+    p.add_argument("--steps", type=int, default=DEFAULT_STEPS,
+                   help=f"env steps per seed of every cell (default {DEFAULT_STEPS:,})")
+    p.add_argument("--physics", default="mujoco", choices=("mjx", "mujoco"),
+                   help="engine of the MuJoCo tasks (default mujoco, MuJoCo's C engine; gym: tasks need it)")
+    p.add_argument("--name", default=DEFAULT_NAME, help=f"the benchmark's name (default {DEFAULT_NAME}): its folders")
+    p.add_argument("--runs-dir", default=None, help="the cells' run folders (default runs/benchmark-<name>)")
+    p.add_argument("--results-dir", default=None, help="archive and artefacts (default results/<name>)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
+                   help="config override passed to every cell (e.g. tiny test settings)")
+    p.add_argument("--launcher", default="local", choices=("local", "ray"),
+                   help="local (default): the cells one after another here; ray: each cell a Ray task "
+                        "(experiments.reproduce's --launcher ray)")
+    p.add_argument("--ray-address", default=None, metavar="HOST:PORT|auto",
+                   help="an existing Ray cluster (default: start a local instance)")
+    p.add_argument("--ray-cpus-per-cell", type=float, default=1.0,
+                   help="CPUs each cell's task asks Ray for (default 1)")
+    p.add_argument("--ray-gpus-per-cell", type=float, default=0.0,
+                   help="GPUs each cell's task asks Ray for (default 0)")
+    p.add_argument("--ray-retries", type=int, default=3,
+                   help="times Ray restarts a cell whose worker died (it resumes from its checkpoint; default 3)")
+    p.add_argument("--checkpoint-every", type=int, default=0, metavar="CHUNKS",
+                   help="each cell checkpoints every CHUNKS chunks (default 0: every --checkpoint-minutes)")
+    p.add_argument("--checkpoint-minutes", type=float, default=5.0, help="minutes between checkpoints (default 5)")
+    p.add_argument("--artefacts-only", action="store_true", help="train nothing; rebuild the artefacts only")
+    p.add_argument("--dry-run", action="store_true",
+                   help="print the plan (each cell's state and command) and the estimated time; do nothing else")
+    p.add_argument("--no-calibrate", action="store_true", help="--dry-run without the calibration runs (no estimate)")
+    p.add_argument("--calibration-task", default=None,
+                   help="the task every entry is calibrated on (default hopper if planned, else the first task)")
+    p.add_argument("--calibration-steps", type=int, default=CALIBRATION_STEPS,
+                   help=f"env steps per seed of each timed calibration chunk, rounded up to whole cycles "
+                        f"(default {CALIBRATION_STEPS:,}; at most the cell's evaluation interval)")
+    p.add_argument("--no-plot", action="store_true", help="skip each run's own PNGs (the artefacts are still drawn)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    return p
+
+
+def parse_tasks(text: str) -> list[str]:
+    """The ``--tasks`` list: paper tasks or ``gym:<Id>`` tasks (``envs.get_spec`` checks them), each once."""
+    from envs import get_spec
+
+    tasks = [t.strip() for t in re.split(r",(?![^()]*\))", text) if t.strip()]  # commas inside gym:Id(...) stay
+    if not tasks:
+        raise ValueError("--tasks names no task")
+    for t in tasks:
+        if t not in TASKS and not t.startswith("gym:"):
+            raise ValueError(f"unknown task {t!r}; valid tasks: {', '.join(TASKS)}, or gym:<Id>")
+        get_spec(t)
+    if len(set(tasks)) != len(tasks) or len({task_folder(t) for t in tasks}) != len(tasks):
+        raise ValueError("--tasks lists a task twice")
+    return tasks
+
+
+def entries(a: argparse.Namespace) -> list[artefacts.Entry]:
+    students = reproduce.parse_list(a.students, tuple(STRATEGIES), "student")
+    if a.strategies is None:
+        return artefacts.entries_for(students)
+    valid = tuple(dict.fromkeys(m for s in students for m in STRATEGIES[s]))
+    return artefacts.entries_for(students, reproduce.parse_list(a.strategies, valid, "strategy"))
+
+
+def student_args(a: argparse.Namespace, student: str) -> argparse.Namespace:
+    """A student's grid as ``experiments.training.grid_cells`` reads it (``experiments.reproduce``'s options)."""
+    runs, results = artefacts.student_dirs(a.runs_dir, a.results_dir, student)
+    argv = [f"--student={student}", f"--preset={artefacts.PRESET}", f"--seeds={a.seeds}", f"--seed={a.seed}",
+            f"--steps={a.steps}", f"--physics={a.physics}", f"--runs-dir={runs}", f"--results-dir={results}",
+            f"--checkpoint-every={a.checkpoint_every}", f"--checkpoint-minutes={a.checkpoint_minutes:g}",
+            f"--launcher={a.launcher}", f"--ray-cpus-per-cell={a.ray_cpus_per_cell:g}",
+            f"--ray-gpus-per-cell={a.ray_gpus_per_cell:g}", f"--ray-retries={a.ray_retries}",
+            *([f"--ray-address={a.ray_address}"] if a.ray_address else []),
+            *(["--no-plot"] if a.no_plot else []), *(["--quiet"] if a.quiet else []),
+            *(f"--set={s}" for s in a.overrides)]
+    args = reproduce.build_parser().parse_args(argv)
+    args.dry_run = a.dry_run
+    return args
+
+
+def plan(a: argparse.Namespace) -> tuple[list[str], list[artefacts.Entry], list[grid_cells.Cell]]:
+    """(tasks, entries, cells in run order: task by task, each task's entries); every cell's config validated
+    (``ValueError``, one line) unless the cell finished at the budget already."""
+    if not re.fullmatch(r"[\w.-]+", a.name):
+        raise ValueError(f"--name {a.name!r}: letters, digits, '_', '.' and '-' only (it names folders)")
+    a.runs_dir = a.runs_dir or os.path.join("runs", f"benchmark-{a.name}")
+    a.results_dir = a.results_dir or os.path.join("results", a.name)
+    tasks = parse_tasks(a.tasks)
+    chosen = entries(a)
+    if a.seeds <= 0:
+        raise ValueError(f"--seeds must be positive, got {a.seeds}")
+    if a.steps <= 0:
+        raise ValueError(f"--steps must be positive, got {a.steps}")
+    if not 0 <= a.seed < 2 ** 32:
+        raise ValueError(f"--seed must be in [0, 2**32), got {a.seed}")
+    for item in a.overrides:
+        if "=" not in item:
+            raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
+    if a.ray_cpus_per_cell < 0 or a.ray_gpus_per_cell < 0 or a.ray_retries < 0:
+        raise ValueError("--ray-cpus-per-cell, --ray-gpus-per-cell and --ray-retries must be >= 0")
+    if a.checkpoint_every < 0 or not a.checkpoint_minutes > 0:
+        raise ValueError("--checkpoint-every must be >= 0 and --checkpoint-minutes > 0")
+    if a.calibration_task is not None and a.calibration_task not in tasks:
+        raise ValueError(f"--calibration-task {a.calibration_task!r} is not one of the planned tasks")
+    if a.calibration_steps <= 0:
+        raise ValueError(f"--calibration-steps must be positive, got {a.calibration_steps}")
+    if a.launcher == "ray" and not a.artefacts_only and not a.dry_run:
+        try:
+            import ray  # noqa: F401
+        except ImportError:
+            raise ValueError("--launcher ray needs Ray: pip install -e \".[ray]\"") from None
+    args = {s: student_args(a, s) for s in dict.fromkeys(e.student for e in chosen)}
+    cells = [grid_cells.Cell(args[e.student], t, e.method, None, (e.student, t, e.method),
+                             f"{e.student}/{t}/{e.method}") for t in tasks for e in chosen]
+    if not a.artefacts_only:
+        # Every cell's config before the first one trains: a budget that one strategy's cycle does not divide, a
+        # bad --set or a task the engine cannot step stops the benchmark here.
+        for cell in cells:
+            if grid_cells.finished_at_budget(cell.args, cell.task, cell.method):
+                continue
+            try:
+                grid_cells.requested_config(cell.args, cell.task, cell.method)
+            except ValueError as err:
+                raise ValueError(f"{cell.tag}: {err}") from None
+    return tasks, chosen, cells
+
+
+# ---------------------------------------------------------------------------------------------- calibration
+
+def calibration_run(args: argparse.Namespace, task: str, method: str, chunk_steps: int) -> dict:
+    """Times a short run of the cell's real config (seeds, networks, replay capacity, evaluation episodes) in an
+    ``experiments.run`` subprocess with a cold compile: a few chunks of ``chunk_steps`` env steps (whole cycles,
+    at most the cell's evaluation interval) after any random warm-up. Returns its compile seconds, the seconds per
+    env step of the steady chunks (their median; each chunk ends with one evaluation, so the evaluations weigh
+    more here than in a run that evaluates less often), and its CPU utilisation (CPU seconds / wall seconds of
+    the subprocess); ``ValueError`` (one line) when the run fails."""
+    cfg = grid_cells.requested_config(args, task, method)
+    cycle = cfg.steps_per_cycle
+    k = min(cfg.run.eval_every, -(-chunk_steps // cycle) * cycle)
+    warm = -(-cfg.run.warmup_steps // k)  # chunks that act at random before the first update
+    chunks = warm + 3
+    cal = argparse.Namespace(**{**vars(args), "steps": chunks * k, "overrides": list(args.overrides) + [
+        f"run.eval_every={k}", f"run.buffer_size={cfg.buffer_capacity}"]})
+    with tempfile.TemporaryDirectory(prefix="metapg-calibration-") as tmp:
+        out = os.path.join(tmp, "run")
+        argv = grid_cells.cell_argv(cal, task, method, out, "new") + ["--compile-cache=off", "--quiet", "--no-plot"]
+        before, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (ROOT, os.environ.get("PYTHONPATH")) if p)}
+        proc = subprocess.run([sys.executable, "-m", "experiments.run", *argv], capture_output=True, text=True,
+                              env=env)
+        wall, after = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
+        if proc.returncode:
+            lines = (proc.stderr or proc.stdout).strip().splitlines() or [f"exit {proc.returncode}"]
+            raise ValueError(f"the calibration run of {task}/{method} failed: {lines[-1]}")
+        with open(os.path.join(out, "summary.json")) as f:
+            summary = json.load(f)
+        seconds = {}
+        with open(os.path.join(out, "metrics.jsonl")) as f:
+            for line in f:
+                row = json.loads(line)
+                seconds.setdefault(row["chunk"], row["chunk_seconds"])
+    steady = [seconds[c] for c in sorted(seconds)][warm + 1:]
+    cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+    return {"task": task, "method": method, "chunk_steps": k, "chunks": chunks, "seeds": args.seeds,
+            "compile_seconds": float(summary["compile_seconds"]),
+            "seconds_per_step": statistics.median(steady) / k, "wall_seconds": round(wall, 2),
+            "cpu_seconds": round(cpu, 2), "cpu_utilisation": cpu / wall if wall > 0 else 1.0}
+
+
+def remaining_steps(cell: grid_cells.Cell, plan_: dict) -> int:
+    """The env steps per seed a planned cell still has to run: the budget, less a resumed cell's checkpointed
+    chunks or an extended cell's stored steps."""
+    from metapg_jax.host.checkpoint import saved_steps
+
+    budget = grid_cells.wanted_budget(cell.args, cell.task)
+    if plan_["state"] == "resume":
+        every = grid_cells.requested_config(cell.args, cell.task, cell.method).run.eval_every
+        return max(0, budget - saved_steps(os.path.join(plan_["out"], "checkpoints"))[-1] * every)
+    if plan_["state"] == "extend":
+        with open(os.path.join(plan_["out"], "summary.json")) as f:
+            return max(0, budget - json.load(f)["env_steps"])
+    return budget
+
+
+def calibrate(a: argparse.Namespace, tasks: list[str], todo: list[tuple[grid_cells.Cell, dict]],
+              run=None) -> tuple[dict, dict, list[str]]:
+    """({cell key: {"wall_seconds", "cpu_seconds"}} estimated for every cell in ``todo`` (cells with work left and
+    their plans), {name: calibration measurement}, failures). The entries are calibrated on the calibration task;
+    every other task with work left is scaled by its student's baseline there over the calibration task
+    (``run``: default ``calibration_run``)."""
+    run = run or calibration_run
+    cal_task = a.calibration_task or next(t for t in ("hopper", *tasks) if t in tasks)
+    wanted = {}
+    for cell, _ in todo:
+        s = cell.args.student
+        wanted[(s, cal_task, cell.method)] = cell.args
+        if cell.task != cal_task:
+            base = artefacts.Entry(s, cell.method).baseline
+            wanted[(s, cal_task, base)] = wanted[(s, cell.task, base)] = cell.args
+    measured, failures = {}, []
+    for i, ((s, t, m), args) in enumerate(wanted.items(), 1):
+        print(f"calibrating [{i}/{len(wanted)}] {s}/{t}/{m} ...", flush=True)
+        try:
+            measured[(s, t, m)] = run(args, t, m, a.calibration_steps)
+        except ValueError as err:
+            failures.append(str(err))
+            print(f"  {err}", file=sys.stderr, flush=True)
+            continue
+        r = measured[(s, t, m)]
+        print(f"  compile {r['compile_seconds']:.1f} s, {r['seconds_per_step'] * 1000:.2f} ms per env step of "
+              f"{r['seeds']} seeds, CPU utilisation {r['cpu_utilisation']:.2f}", flush=True)
+    estimates = {}
+    for cell, plan_ in todo:
+        s, base = cell.args.student, artefacts.Entry(cell.args.student, cell.method).baseline
+        own = measured.get((s, cal_task, cell.method))
+        scale = measured.get((s, cell.task, base)), measured.get((s, cal_task, base))
+        if own is None or (cell.task != cal_task and None in scale):
+            continue
+        ratio = (lambda k: 1.0) if cell.task == cal_task else (lambda k: scale[0][k] / scale[1][k])
+        wall = (own["compile_seconds"] * ratio("compile_seconds")
+                + remaining_steps(cell, plan_) * own["seconds_per_step"] * ratio("seconds_per_step"))
+        estimates[cell.key] = {"wall_seconds": wall, "cpu_seconds": wall * own["cpu_utilisation"]}
+    return estimates, {"/".join(k): v for k, v in measured.items()}, failures
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:,.0f} s" if seconds < 3600 else f"{seconds / 3600:,.2f} h"
+
+
+def dry_run(a: argparse.Namespace, tasks: list[str], cells: list[grid_cells.Cell]) -> int:
+    """Prints every cell's state and command, and (unless ``--no-calibrate``) its estimated time and the total;
+    returns 1 when every calibration run failed, else 0."""
+    plans = [(cell, grid_cells.plan_cell(cell.args, cell.task, cell.method)) for cell in cells]
+    todo = [(c, p) for c, p in plans if p["argv"] is not None]
+    estimates, failures = {}, []
+    if todo and not a.no_calibrate:
+        estimates, _, failures = calibrate(a, tasks, todo)
+    counts = {}
+    for i, (cell, p) in enumerate(plans, 1):
+        counts[p["state"]] = counts.get(p["state"], 0) + 1
+        line = f"[{i}/{len(plans)}] {cell.tag} [{p['state']}] {p['message']}"
+        if cell.key in estimates:
+            e = estimates[cell.key]
+            line += f"\n    estimated: {_duration(e['cpu_seconds'])} CPU, {_duration(e['wall_seconds'])} wall"
+        print(line, flush=True)
+    print("plan: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())), flush=True)
+    if not todo:
+        print("estimated: nothing to run", flush=True)
+    elif a.no_calibrate:
+        print(f"estimated: not calibrated (--no-calibrate); {len(todo)} cells with work left", flush=True)
+    else:
+        cpu = sum(e["cpu_seconds"] for e in estimates.values())
+        wall = sum(e["wall_seconds"] for e in estimates.values())
+        missing = len(todo) - len(estimates)
+        print(f"estimated total: {_duration(cpu)} CPU, {_duration(wall)} wall one cell at a time on this machine "
+              f"({os.cpu_count()} CPUs)" + (f"; {missing} cells without an estimate (calibration failed)"
+                                                     if missing else ""), flush=True)
+    return 1 if failures and not estimates else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    a = build_parser().parse_args(argv)
+    try:
+        tasks, chosen, cells = plan(a)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    per = ", ".join(f"{STUDENT_NAMES.get(s, s)}: {sum(e.student == s for e in chosen)}"
+                    for s in dict.fromkeys(e.student for e in chosen))
+    print(f"exploration benchmark {a.name!r}: {len(tasks)} tasks x {len(chosen)} entries ({per}) = {len(cells)} "
+          f"cells of {a.seeds} seeds, {a.steps:,} env steps per seed, {a.physics} physics, base seed {a.seed}; "
+          f"cells in {a.runs_dir}/<student>/{artefacts.PRESET}/<task>/<method>, results in {a.results_dir}",
+          flush=True)
+    if a.dry_run:
+        return dry_run(a, tasks, cells)
+    t0, status = time.perf_counter(), 0
+    if not a.artefacts_only:
+        if a.launcher == "ray":
+            status, report = grid_cells.run_cells_ray(cells, cells[0].args)
+        else:
+            status, report = grid_cells.run_cells(cells)
+        counts = {}
+        for v in report.values():
+            counts[v] = counts.get(v, 0) + 1
+        print("benchmark: " + (", ".join(f"{n} {k}" for k, n in sorted(counts.items())) or "nothing to do"),
+              flush=True)
+    options = {"name": a.name, "students": list(dict.fromkeys(e.student for e in chosen)),
+               "strategies": [e.key for e in chosen], "seeds": a.seeds, "seed": a.seed, "steps": a.steps,
+               "physics": a.physics, "overrides": a.overrides,
+               "argv": sys.argv[1:] if argv is None else list(argv)}
+    manifest = artefacts.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
+                               extra_provenance={"benchmark_wall_seconds": round(time.perf_counter() - t0, 2)})
+    print(f"artefacts: {len(manifest['files'])} files in {a.results_dir} ({len(manifest['cells'])} stored cells, "
+          f"{len(manifest['not_run'])} not run)", flush=True)
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,256 @@
+"""experiments.benchmark: bad input, the plan (cells, seeds, folders, each cell's command) with the skip of finished
+cells, the resume of a checkpointed one and the calibrated estimate, a tiny benchmark run end to end (run, skip,
+resume plan), and the artefacts built from a fabricated benchmark (per-task tables with corrected verdicts, the
+aggregate, the sample-efficiency curves, the cost, cells not run shown as not run)."""
+
+import csv
+import json
+import os
+
+import numpy as np
+import pytest
+
+from experiments import benchmark
+from experiments.build import benchmark as artefacts
+from experiments.build import grid, stats
+from experiments.training import grid_cells
+from tests.helpers import fabricate_run
+
+# Tiny cells (16-16 networks, 300-step chunks, 2 evaluation episodes) on a fixed replay capacity.
+TINY = ["--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16", "--set", "run.eval_episodes=2",
+        "--set", "ddpg.batch_size=16", "--set", "run.buffer_size=900"]
+
+
+def test_bad_input_is_one_error_line_before_anything_runs(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for argv, said in ((["--tasks", "cartpole"], "unknown task 'cartpole'"),
+                       (["--students", "ddpg"], "unknown student 'ddpg'; valid: td3, sac"),
+                       (["--students", "td3", "--strategies", "sac-pink"], "unknown strategy 'sac-pink'"),
+                       (["--seeds", "0"], "--seeds must be positive"),
+                       (["--name", "a/b"], "--name 'a/b'"),
+                       (["--tasks", "hopper,hopper"], "lists a task twice"),
+                       (["--tasks", "pendulum", "--set", "ddpg.nope=1"],
+                        "td3/pendulum/td3-normal: unknown config field"),
+                       (["--tasks", "pendulum", "--steps", "1000"],
+                        "td3/pendulum/meta-independent: run.total_steps=1000 is not a multiple of the 300"),
+                       (["--tasks", "gym:InvertedPendulum-v5", "--physics", "mjx", "--students", "sac"],
+                        "runs on MuJoCo's C engine only")):
+        assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("error: ") and said in err[0], (argv, err)
+    assert not os.listdir(tmp_path)
+
+
+def test_the_default_plan_and_a_gym_task(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert benchmark.main(["--dry-run", "--no-calibrate"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("exploration benchmark 'exploration': 6 tasks x 10 entries (TD3: 7, SAC: 3) = 60 cells "
+                             "of 10 seeds, 300,000 env steps per seed, mujoco physics, base seed 1000")
+    cells = [line for line in out if line.startswith("[")]
+    assert len(cells) == 60 and all("[new] running: python -m experiments.run" in c for c in cells)
+    assert out[-2:] == ["plan: 60 new", "estimated: not calibrated (--no-calibrate); 60 cells with work left"]
+    line = lambda tag: next(c for c in cells if f"] {tag} [" in c)
+    hopper = line("td3/hopper/meta-tuned")
+    assert "--method=meta --teacher=independent --preset=tuned --seeds=10 --seed=1000" in hopper
+    assert "--physics=mujoco --student=td3 --steps=300000" in hopper
+    assert hopper.endswith("--out runs/benchmark-exploration/td3/paper/hopper/meta-tuned")
+    assert "--preset=paper" in line("td3/hopper/meta-independent") and "--noise=ou --set noise.stddev=0.1" in \
+        line("td3/hopper/td3-ou")
+    sac = line("sac/pendulum/sac-meta")
+    assert "--student=sac" in sac and "--physics" not in sac and "/sac/paper/pendulum/sac-meta" in sac
+    assert not (tmp_path / "runs").exists()
+
+    # Any gymnasium MuJoCo task, in a folder of its own name.
+    assert benchmark.main(["--tasks", "gym:InvertedPendulum-v5", "--students", "sac", "--strategies", "sac-own",
+                           "--dry-run", "--no-calibrate"]) == 0
+    cell = next(c for c in capsys.readouterr().out.splitlines() if c.startswith("[1/1]"))
+    assert "--env=gym:InvertedPendulum-v5" in cell and cell.endswith("sac/paper/gym-InvertedPendulum-v5/sac-own")
+    assert grid.task_folder("gym:Ant-v5(ctrl_cost_weight=0.1)") == "gym-Ant-v5-ctrl_cost_weight=0.1"
+    assert grid.task_name("gym:Walker2d-v5") == "Walker2d-v5" and grid.task_name("hopper") == "Hopper"
+
+
+def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_rest(tmp_path, capsys):
+    runs, results = tmp_path / "runs", tmp_path / "res"
+    argv = ["--tasks", "pendulum,reacher", "--students", "td3,sac", "--strategies", "td3-normal,td3-pink,sac-own",
+            "--seeds", "2", "--steps", "900", "--runs-dir", str(runs), "--results-dir", str(results), *TINY]
+    steps = np.array([300, 600, 900])
+    fabricate_run(runs / "td3" / "paper" / "pendulum" / "td3-normal", "pendulum", "td3-normal", np.zeros((2, 3)), steps)
+    killed = runs / "td3" / "paper" / "pendulum" / "td3-pink"  # killed after its first checkpoint (chunk 1)
+    fabricate_run(killed, "pendulum", "td3-pink", np.zeros((2, 1)), steps[:1], complete=False)
+    (killed / "checkpoints" / "1").mkdir(parents=True)
+    empty = runs / "td3" / "paper" / "reacher" / "td3-pink"  # killed before its first checkpoint
+    empty.mkdir(parents=True)
+    (empty / "config.json").write_text("{}")
+    # Finished in an earlier clone: only the archive holds it.
+    fabricate_run(results / "sac" / "cells" / "reacher" / "sac-own", "reacher", "sac-own", np.zeros((2, 3)), steps)
+    assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 0
+    out = capsys.readouterr().out
+    assert "td3/pendulum/td3-normal [done] done, skipped: final return 0.0" in out
+    assert f"td3/pendulum/td3-pink [resume] resuming: python -m experiments.run" in out
+    assert f"--resume {killed}" in out
+    assert "td3/reacher/td3-pink [restart] restarting (no checkpoint stored)" in out and "--overwrite" in out
+    assert "sac/reacher/sac-own [done] done, skipped" in out and "sac/pendulum/sac-own [new] running" in out
+    assert "plan: 2 done, 2 new, 1 restart, 1 resume" in out
+
+    # The estimate: each entry calibrated on the first task (pendulum), reacher scaled by the student's baseline.
+    measured = {("pendulum", "td3-normal"): (10.0, 1e-3), ("pendulum", "td3-pink"): (20.0, 2e-3),
+                ("reacher", "td3-normal"): (30.0, 4e-3), ("pendulum", "sac-own"): (5.0, 1e-3)}
+    calls = []
+
+    def fake_run(args, task, method, chunk_steps):
+        calls.append((args.student, task, method, chunk_steps))
+        compile_s, per_step = measured[(task, method)]
+        return {"compile_seconds": compile_s, "seconds_per_step": per_step, "cpu_utilisation": 1.5, "seeds": 2}
+
+    a = benchmark.build_parser().parse_args(argv + ["--dry-run", "--calibration-steps", "600"])
+    tasks, chosen, cells = benchmark.plan(a)
+    todo = [(c, p) for c, p in ((c, grid_cells.plan_cell(c.args, c.task, c.method)) for c in cells) if p["argv"]]
+    estimates, _, failures = benchmark.calibrate(a, tasks, todo, run=fake_run)
+    assert not failures and sorted(calls) == sorted([("td3", "pendulum", "td3-normal", 600),
+                                                     ("td3", "pendulum", "td3-pink", 600),
+                                                     ("td3", "reacher", "td3-normal", 600),
+                                                     ("sac", "pendulum", "sac-own", 600)])
+    assert set(estimates) == {("td3", "reacher", "td3-normal"), ("td3", "pendulum", "td3-pink"),
+                              ("td3", "reacher", "td3-pink"), ("sac", "pendulum", "sac-own")}
+    # Resumed after 1 of 3 chunks: 600 steps left. Reacher: pink's pendulum numbers x the baseline's reacher/pendulum.
+    assert estimates[("td3", "pendulum", "td3-pink")]["wall_seconds"] == pytest.approx(20 + 600 * 2e-3)
+    assert estimates[("td3", "reacher", "td3-pink")]["wall_seconds"] == pytest.approx(20 * 3 + 900 * 2e-3 * 4)
+    assert estimates[("td3", "reacher", "td3-pink")]["cpu_seconds"] == pytest.approx(1.5 * (60 + 7.2))
+    assert not runs.joinpath("sac").exists()  # nothing ran
+
+
+def test_a_tiny_benchmark_runs_archives_skips_and_plans_the_resume(tmp_path, capsys):
+    runs, results = tmp_path / "runs", tmp_path / "res"
+    argv = ["--tasks", "pendulum", "--students", "td3", "--strategies", "td3-normal", "--seeds", "2", "--steps", "600",
+            "--runs-dir", str(runs), "--results-dir", str(results), "--quiet", "--no-plot", *TINY]
+    assert benchmark.main(argv) == 0
+    out = capsys.readouterr().out
+    assert "benchmark: 1 ran" in out
+    cell = runs / "td3" / "paper" / "pendulum" / "td3-normal"
+    archived = results / "td3" / "cells" / "pendulum" / "td3-normal"
+    record = json.loads((archived / "reproduce.json").read_text())
+    assert record["cpu_seconds"] > 0 and record["cpu_seconds_calls"] == 1
+    assert "--student=td3" in record["calls"][0]["argv"]
+    summary = json.loads((cell / "summary.json").read_text())
+    table = json.loads((results / "tasks" / "pendulum.json").read_text())
+    assert table["rows"][0]["per_seed"] == pytest.approx(summary["final_return_per_seed"])
+    cost = json.loads((results / "cost.json").read_text())
+    assert cost["cells"][0]["cpu_seconds"] == record["cpu_seconds"] and cost["cells"][0]["env_steps_per_second"] > 0
+    manifest = json.loads((results / "manifest.json").read_text())
+    assert manifest["cells"][0]["student"] == "td3" and manifest["not_run"] == []
+    assert manifest["benchmark"]["seed"] == 1000 and manifest["benchmark"]["argv"] == argv
+
+    assert benchmark.main(argv) == 0  # done: skipped, the artefacts rebuilt
+    assert "benchmark: 1 skipped" in capsys.readouterr().out
+    (cell / "summary.json").unlink()  # as if killed after its last checkpoint
+    assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 0
+    assert f"[resume] resuming: python -m experiments.run" in capsys.readouterr().out
+
+
+def _write_rows(path, extra):
+    """Adds fields to every row of a fabricated run's metrics.jsonl."""
+    rows = [json.loads(line) for line in (path / "metrics.jsonl").read_text().splitlines()]
+    (path / "metrics.jsonl").write_text("".join(json.dumps({**r, **extra(r)}) + "\n" for r in rows))
+
+
+def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
+    """2 tasks x 2 students (TD3: Gaussian, pink noise, the teacher; SAC: own, pink): per-task tables with
+    Holm-corrected verdicts per student, the aggregate over the task where every cell finished, the best fixed
+    noise, the curves, the cost, and a cell never run shown as not run."""
+    runs, results = tmp_path / "runs", tmp_path / "res"
+    rng = np.random.default_rng(0)
+    steps = np.arange(1, 11) * 300
+    means = {"td3-normal": 400.0, "td3-pink": 800.0, "meta-independent": 300.0, "sac-own": 500.0, "sac-pink": 520.0}
+    values = {}
+    gym_task = "gym:InvertedPendulum-v5"  # no normalisation anchors
+    for task, scale in (("hopper", 1.0), ("reacher", -0.01), (gym_task, 1.0)):
+        for student, methods in (("td3", ("td3-normal", "td3-pink", "meta-independent")),
+                                 ("sac", ("sac-own", "sac-pink"))):
+            for m in methods:
+                if (task, m) == ("reacher", "sac-pink"):
+                    continue  # never run
+                values[(task, m)] = scale * rng.normal(means[m], 30.0, (4, 10)) * np.linspace(0.2, 1.0, 10)
+                fabricate_run(runs / student / "paper" / grid.task_folder(task) / m, task, m, values[(task, m)], steps)
+    hopper_pink = runs / "td3" / "paper" / "hopper" / "td3-pink"
+    _write_rows(hopper_pink, lambda r: {"wall_time": 2.0 * (r["chunk"] + 1), "chunk_seconds": 2.0})
+    grid_cells.write_cell_record(str(hopper_pink), ["--a"], 0, 25.0, {"commit": "c", "dirty": False,
+                                                                     "machine": {"cpu_count": 2}}, cpu_seconds=40.0)
+    anchors = tmp_path / "anchors.json"
+    ranges = {"hopper": (0.0, 1000.0), "reacher": (-40.0, -4.0)}
+    anchors.write_text(json.dumps({"tasks": {t: {"random_return": lo, "reference_return": hi}
+                                             for t, (lo, hi) in ranges.items()}}))
+    entries = artefacts.entries_for(["td3", "sac"], ["td3-pink", "meta-independent", "sac-pink"])
+    assert [e.key for e in entries] == ["td3/td3-normal", "td3/td3-pink", "td3/meta-independent", "sac/sac-own",
+                                        "sac/sac-pink"]  # each student's Gaussian noise always planned
+    manifest = artefacts.build(str(runs), str(results), entries, ["hopper", "reacher", gym_task],
+                               plan={"name": "t", "students": ["td3", "sac"], "seeds": 4, "seed": 1000, "steps": 3000,
+                                     "physics": "mujoco"}, anchors_path=str(anchors))
+    assert manifest["not_run"] == [["sac", "reacher", "sac-pink"]]
+    for name in ("tasks/hopper.md", "tasks/hopper.json", "tasks/hopper_per_seed.csv", "tasks/reacher.md",
+                 "aggregate.md", "aggregate.json", "aggregate_scores.png", "performance_profiles.png",
+                 "sample_efficiency.json", "sample_efficiency.png", "cost.md", "cost.json", "README.md"):
+        assert name in manifest["files"] and (results / name).exists(), name
+    assert (results / "td3" / "cells" / "hopper" / "td3-pink" / "summary.json").exists()  # archived per student
+
+    # Per task: every cell, the verdicts of one family per student (its strategies against its Gaussian noise on
+    # both tasks), Holm-corrected.
+    final = lambda t, m: stats.final_returns(values[(t, m)])
+    rows_of = lambda task: json.loads((results / "tasks" / f"{task}.json").read_text())["rows"]
+    table = {(r["student"], r["method"]): r for r in rows_of("reacher")}
+    assert table[("sac", "sac-pink")]["status"] == "not run" and table[("td3", "td3-normal")]["verdict"] is None
+    raw = [stats.welch_test(final(t, m), final(t, "td3-normal"))[1] for m in ("td3-pink", "meta-independent")
+           for t in ("hopper", "reacher", gym_task)]
+    holm = stats.holm(raw)
+    assert table[("td3", "td3-pink")]["verdict"]["p_holm"] == pytest.approx(holm[1])
+    assert table[("td3", "meta-independent")]["verdict"]["p_holm"] == pytest.approx(holm[4])
+    assert table[("td3", "td3-pink")]["verdict"]["margin"] == pytest.approx(0.05 * 36)
+    md = (results / "tasks" / "reacher.md").read_text()
+    assert "| SAC | SAC (pink noise) | not run | not run |" in md
+    assert "| TD3 | TD3 + Meta (independent) |" in md and "TD3: 6 comparisons, SAC: 2 comparisons" in md
+    hopper = {(r["student"], r["method"]): r for r in rows_of("hopper")}
+    assert hopper[("td3", "td3-pink")]["verdict"]["verdict"] == "better"
+    sac_raw = [stats.welch_test(final(t, "sac-pink"), final(t, "sac-own"))[1] for t in ("hopper", gym_task)]
+    assert hopper[("sac", "sac-pink")]["verdict"]["p_holm"] == pytest.approx(stats.holm(sac_raw)[0])
+    with open(results / "tasks" / "hopper_per_seed.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(rows) == 5 * 4 and float(rows[4]["final_return"]) == pytest.approx(final("hopper", "td3-pink")[0])
+
+    # The aggregate: over hopper only (reacher has a cell not run), the best fixed noise by IQM.
+    rep = json.loads((results / "aggregate.json").read_text())
+    assert rep["tasks"] == ["hopper"] and rep["left_out"] == ["Reacher (no finished cell for SAC (pink noise))",
+                                                              "InvertedPendulum-v5 (no normalisation anchors)"]
+    gym_rows = json.loads((results / "tasks" / "gym-InvertedPendulum-v5.json").read_text())["rows"]
+    assert gym_rows[1]["verdict"]["margin"] is None and gym_rows[1]["verdict"]["verdict"] != "equivalent"
+    scores = lambda m: stats.normalise(final("hopper", m), *ranges["hopper"])
+    assert rep["methods"]["td3/td3-pink"]["IQM"]["point"] == pytest.approx(stats.iqm(scores("td3-pink")))
+    assert rep["best_fixed_noise"] == {s: {"entry": f"{s}/{m}", "IQM": pytest.approx(stats.iqm(scores(m)))}
+                                       for s, m in (("td3", "td3-pink"), ("sac", "sac-pink"))}
+    pairs = {(p["x"], p["y"], p["reference"]): p for p in rep["improvement"]}
+    assert set(pairs) == {("td3/td3-pink", "td3/td3-normal", "Gaussian noise"),
+                          ("td3/meta-independent", "td3/td3-normal", "Gaussian noise"),
+                          ("sac/sac-pink", "sac/sac-own", "Gaussian noise"),
+                          ("td3/td3-normal", "td3/td3-pink", "best fixed noise"),
+                          ("td3/meta-independent", "td3/td3-pink", "best fixed noise"),
+                          ("sac/sac-own", "sac/sac-pink", "best fixed noise")}
+    assert pairs[("td3/td3-pink", "td3/td3-normal", "Gaussian noise")]["point"] == 1.0
+    assert "same seeds" in rep["best_fixed_noise_rule"] and "| Y is |" in (results / "aggregate.md").read_text()
+
+    # Sample efficiency: the IQM of the normalised evaluation returns at each evaluation point.
+    curves = json.loads((results / "sample_efficiency.json").read_text())
+    assert curves["steps"] == steps.tolist() and curves["tasks"] == ["hopper"]
+    pink = curves["entries"]["td3/td3-pink"]
+    assert pink["iqm"][3] == pytest.approx(stats.iqm(stats.normalise(values[("hopper", "td3-pink")][:, 3], 0, 1000)))
+    assert pink["lo"][3] <= pink["iqm"][3] <= pink["hi"][3]
+
+    # The cost: from the records, never estimated.
+    cost = json.loads((results / "cost.json").read_text())
+    row = next(c for c in cost["cells"] if (c["task"], c["method"]) == ("hopper", "td3-pink"))
+    assert row["cpu_seconds"] == 40.0 and row["wall_seconds"] == 25.0 and row["train_seconds"] == 20.0
+    assert row["env_steps_per_second"] == pytest.approx(4 * 3000 / 20.0) and row["compile_seconds"] == 0.5
+    assert next(c for c in cost["cells"] if c["method"] == "sac-pink" and c["task"] == "reacher")["status"] == "not run"
+    assert cost["totals"]["cpu_seconds"] == 40.0 and cost["totals"]["cells_not_run"] == 1
+    readme = (results / "README.md").read_text()
+    mean, std = stats.mean_std(final("hopper", "td3-pink"))
+    assert "1 not run (sac/reacher/sac-pink)" in readme and "| SAC | SAC (pink noise) |" in readme
+    assert f"| TD3 | TD3 (pink noise) | {stats.fmt(mean)} ± {stats.fmt(std)} (better) |" in readme
