@@ -396,7 +396,10 @@ def cost_rows(results: dict, entries: Sequence[Entry], tasks: Sequence[str]) -> 
 def cost_totals(rows: list[dict]) -> dict:
     """Sums over the stored cells (unfinished ones included: their calls ran), and which cells lack a record."""
     stored = [r for r in rows if r["status"] != "not run"]
-    total = lambda k: round(sum(r[k] for r in stored if r.get(k) is not None), 2)
+    def total(key):  # None: no stored cell recorded it (e.g. CPU time, for cells run before it was recorded)
+        values = [r[key] for r in stored if r.get(key) is not None]
+        return round(sum(values), 2) if values else None
+
     calls = sum(r["calls"] or 0 for r in stored)
     return {"cells_stored": len(stored), "cells_done": sum(r["status"] == "done" for r in stored),
             "cells_not_run": len(rows) - len(stored),
@@ -409,6 +412,14 @@ def cost_totals(rows: list[dict]) -> dict:
 
 def _hours(seconds: float | None) -> str:
     return "n/a" if seconds is None else f"{seconds / 3600:,.2f} h"
+
+
+def _cpu_time(totals: dict) -> str:
+    """'CPU time X h', 'CPU time X h (not recorded for N cells)' or 'CPU time not recorded'."""
+    missing = len(totals["cells_without_cpu_record"])
+    if totals["cpu_seconds"] is None:
+        return "CPU time not recorded (cells run before their calls recorded it)"
+    return f"CPU time {_hours(totals['cpu_seconds'])}" + (f" (not recorded for {missing} cells)" if missing else "")
 
 
 def write_cost(rows: list[dict], totals: dict, out_dir: str, footer: str) -> list[str]:
@@ -541,10 +552,8 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
                          + (f"{interval(b)} ({labels.get(best, best)})" if b else
                             "– (it is the best)" if best == e.key else "–") + " |")
     lines += ["", "## Cost", "",
-              f"{totals['cells_stored']} stored cells: CPU time {_hours(totals['cpu_seconds'])}"
-              + (f" (not recorded for {len(totals['cells_without_cpu_record'])} cells)"
-                 if totals["cells_without_cpu_record"] else "")
-              + f", wall time {_hours(totals['wall_seconds'])}; per cell in `cost.md`."]
+              f"{totals['cells_stored']} stored cells: {_cpu_time(totals)}, wall time "
+              f"{_hours(totals['wall_seconds'])}; per cell in `cost.md`."]
     lines.append(footer)
     path = os.path.join(out_dir, "README.md")
     with open(path, "w") as f:
