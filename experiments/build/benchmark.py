@@ -157,14 +157,15 @@ def task_table(task: str, rows: dict[str, list[dict]], entries: Sequence[Entry],
 
 def _verdict_cells(r: dict) -> list[str]:
     if r["method"] == r["baseline"]:
-        return ["baseline"] + ["–"] * 4
+        return ["baseline"] + ["–"] * 5
     v = r["verdict"]
     if v is None:
         why = r.get("not_compared") or ("not compared: a cell is not finished" if r["status"] == "done" else "–")
-        return [why] + ["–"] * 4
+        return [why] + ["–"] * 5
     ci = "" if v["ci95"] is None else f" [{stats.fmt(v['ci95'][0])}, {stats.fmt(v['ci95'][1])}]"
-    return [f"{stats.fmt(v['difference'])}{ci}", stats.fmt_p(v["p"]), stats.fmt_p(v["p_holm"]),
-            stats.fmt_p(v["p_equivalence_holm"]) + ("" if v["margin"] is not None else " (no margin)"), v["verdict"]]
+    margin = "none" if v["margin"] is None else f"±{stats.fmt(v['margin'])}"
+    return [f"{stats.fmt(v['difference'])}{ci}", margin, stats.fmt_p(v["p"]), stats.fmt_p(v["p_holm"]),
+            stats.fmt_p(v["p_equivalence_holm"]), v["verdict"]]
 
 
 def write_task_tables(task: str, table: list[dict], families: dict[str, dict], out_dir: str, footer: str,
@@ -186,11 +187,12 @@ def write_task_tables(task: str, table: list[dict], families: dict[str, dict], o
           f"- {stats.VERDICT_DEFINITION}. Each student's family: every one of its strategies against its baseline "
           f"on every task of the benchmark (" + ", ".join(f"{STUDENT_NAMES.get(s, s)}: {n} comparisons"
                                                        for s, n in sizes.items()) + ").",
-          "- a − b: difference of the mean final returns with its 95% Welch CI; p: raw Welch p; Holm p: corrected "
-          "within the family; TOST p: the equivalence test's, Holm-corrected within the family (no margin: the task "
-          "has no normalisation anchors, so it is never judged equivalent).", "",
-          "| student | strategy | final return | 95% CI | seeds | budget | a − b vs baseline [95% CI] | p | Holm p | "
-          "TOST p (Holm) | verdict |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+          "- a − b: difference of the mean final returns with its 95% Welch CI; margin: the equivalence margin in "
+          "return units ('none': the task has no normalisation anchors, so it is never judged equivalent); p: raw "
+          "Welch p; Holm p: corrected within the family; TOST p: the equivalence test's, Holm-corrected within the "
+          "family.", "",
+          "| student | strategy | final return | 95% CI | seeds | budget | a − b vs baseline [95% CI] | margin | p | "
+          "Holm p | TOST p (Holm) | verdict |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in table:
         done = r["status"] == "done"
         seeds, budget = (str(r["n"]), f"{r['budget']:,}") if done else ("–", "–")
