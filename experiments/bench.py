@@ -88,7 +88,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--strategies", default=None,
                    help="comma-separated grid methods instead of --methods (experiments.build.grid.METHODS, e.g. "
                         "td3-normal,td3-pink,td3-mixed,sac-own,sac-pink): each with its student and options, "
-                        "named in the method column")
+                        "named in the method column; rows go to the 'strategies' section of --out and to "
+                        "benchmarks_strategies.json")
     p.add_argument("--presets", default="paper,modern")
     p.add_argument("--seeds", default="1,8,32")
     p.add_argument("--repeats", type=int, default=3)
@@ -180,6 +181,8 @@ def main(argv: list[str] | None = None) -> int:
     from metapg_jax.host import provenance, runfiles
 
     _cold_compiles()
+    if args.strategies:  # a section and raw file of their own: the training rows of the default grid stay
+        args.json = args.json or os.path.join(BENCH_DIR, "benchmarks_strategies.json")
     json_path = args.json or os.path.join(BENCH_DIR, "benchmarks_env_speed.json" if args.env_speed
                                           else "benchmarks.json")
     meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
@@ -248,7 +251,7 @@ def main(argv: list[str] | None = None) -> int:
               f"(buffers {r['buffer_mib']:,.0f})", flush=True)
         # rewritten (atomically) after every row: a long benchmark never loses rows
         runfiles.write_json_atomic(json_path, {"meta": meta, "rows": rows})
-        write_markdown(rows, args.out, meta)
+        write_markdown(rows, args.out, meta, section="strategies" if args.strategies else "training")
     scaling = seed_scaling(rows)
     for r in rows:
         if r["seeds"] == 8 and id(r) in scaling:

@@ -153,7 +153,8 @@ def seed_scaling(rows: list[dict]) -> dict:
     return {id(r): r["steps_per_s_total"] / base[group(r)] for r in rows if group(r) in base}
 
 
-def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
+def write_markdown(rows: list[dict], path: str, meta: dict, section: str = "training") -> None:
+    """The rows' table as the generated ``section`` of ``path`` (``training``; ``strategies`` for grid methods)."""
     scaling = seed_scaling(rows)
     dates = sorted({_date(r) for r in rows})
     rows = sorted(rows, key=lambda r: (r["env"] != "pendulum", r["env"], r["preset"], r["method"], _date(r),
@@ -178,5 +179,5 @@ def write_markdown(rows: list[dict], path: str, meta: dict) -> None:
         lines += ["", "Rows of different dates may have run under different machine load: compare ratios "
                   "within a date; scaling is computed within a date."]
     lines += engines_markdown(rows)
-    write_section(path, "training", "\n".join(lines))
+    write_section(path, section, "\n".join(lines))
 
