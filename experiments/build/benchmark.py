@@ -386,8 +386,8 @@ def cost_rows(results: dict, entries: Sequence[Entry], tasks: Sequence[str]) -> 
             train = r.train_seconds
             out.append({**row, "status": "done" if r.complete else "incomplete", "seeds": r.num_seeds,
                         "env_steps_done": r.env_steps_done, "budget": r.budget,
-                        "wall_seconds": prov["wall_seconds"], "cpu_seconds": prov["cpu_seconds"],
-                        "cpu_seconds_calls": prov["cpu_seconds_calls"],
+                        "wall_seconds": prov["wall_seconds"], "cpu_seconds": prov.get("cpu_seconds"),
+                        "cpu_seconds_calls": prov.get("cpu_seconds_calls"),
                         "calls": len(r.provenance.get("calls") or []) or None,
                         "train_seconds": train, "compile_seconds": r.summary.get("compile_seconds"),
                         "env_steps_per_second": round(steps / train, 1) if train else None,

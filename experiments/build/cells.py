@@ -245,11 +245,13 @@ def cell_provenance(r: RunResult) -> dict:
         "preset": r.config.get("preset"), "run_args": r.run_args, "config": r.config,
         "machine": prov.get("machine") or {k: r.info.get(k) for k in ("jax_version", "backend", "devices")},
         "wall_seconds": wall,
-        # the process CPU time (user + system, all threads) of the recorded calls that measured it (reproduce.json)
-        "cpu_seconds": prov.get("cpu_seconds"), "cpu_seconds_calls": prov.get("cpu_seconds_calls"),
         # every call's training time, compile excluded, from the metrics rows: also the calls a shutdown
         # killed before reproduce.json recorded them (which wall_seconds misses)
         "train_seconds_all_calls": r.train_seconds, "train_seconds_all_calls_exact": r.train_seconds_exact,
+        # the process CPU time (user + system, all threads) of the recorded calls that measured it (reproduce.json;
+        # only there for cells whose calls recorded it, so older manifests rebuild byte for byte)
+        **({"cpu_seconds": prov["cpu_seconds"], "cpu_seconds_calls": prov.get("cpu_seconds_calls")}
+           if prov.get("cpu_seconds") is not None else {}),
     }
 
 

@@ -55,12 +55,13 @@ META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/strategies/noise.py); the tuned
 # preset's DDPG is the paper preset's.
 BASELINES = {"paper": BASELINE, "modern": "ddpg-normal", "tuned": BASELINE}
-# Each student's grid: its methods (a method's options plus ``--student=<student>`` for a student other
-# than DDPG) and the baseline its Meta is compared against, whatever the preset: for TD3, TD3 with its
-# own Gaussian exploration noise.
+# Each student's reproduction grid (``experiments.reproduce --student``): its methods (a method's options plus
+# ``--student=<student>`` for a student other than DDPG) and the baseline its Meta is compared against, whatever
+# the preset: for TD3, TD3 with its own Gaussian exploration noise; for SAC, SAC with its own policy.
+# Every other strategy of a student is the exploration benchmark's (STRATEGIES).
 GRIDS = {"ddpg": ("meta-independent", "meta-variance", "ddpg-paramnoise", "ddpg-normal"),
-         "td3": ("meta-independent", "td3-normal", "td3-pink", "td3-mixed"),
-         "sac": ("sac-own", "sac-pink")}
+         "td3": ("meta-independent", "td3-normal"),
+         "sac": ("sac-meta", "sac-own")}
 STUDENT_BASELINES = {"td3": "td3-normal", "sac": "sac-own"}
 # The exploration benchmark (experiments.benchmark): each student's strategies, its Gaussian-noise baseline
 # (STUDENT_BASELINES) first, every other one judged against it. TD3: Gaussian, OU, adaptive parameter noise,
