@@ -68,7 +68,7 @@ import mujoco
 import numpy as np
 
 from envs import TaskSpec
-from envs.mujoco_c import STATE_SPEC, HostCallEnv
+from envs.mujoco_c import STATE_SPEC, HostCallEnv, pack_step
 
 __all__ = ["GymnasiumCEnv", "GymnasiumHost", "make_gymnasium_env", "parse_name", "task_spec"]
 
@@ -390,14 +390,7 @@ class GymnasiumHost:
             r = self.step(rows, f[:, :nu])
         out = np.empty((len(flat), self.w_step_out), np.uint32)
         out[:, :ws] = r["rows"].view(np.uint32)
-        o = out.view(np.float32)
-        o[:, ws:ws + no] = r["next_obs"]
-        o[:, ws + no:ws + 2 * no] = r["obs"]
-        k = ws + 2 * no
-        o[:, k] = r["reward"]
-        o[:, k + 1] = r["terminated"]
-        for i, key in enumerate(self.metric_keys):
-            o[:, k + 2 + i] = r["metrics"][key]
+        pack_step(out, r, ws, no, self.metric_keys)
         return out.reshape(*lead, self.w_step_out)
 
 

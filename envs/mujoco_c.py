@@ -131,6 +131,20 @@ def _floats(w: jax.Array) -> jax.Array:
     return jax.lax.bitcast_convert_type(w, jnp.float32)
 
 
+
+def pack_step(out: np.ndarray, r: dict, ws: int, no: int, metric_keys) -> None:
+    """Writes a host step's results after the ``ws`` state words of each row of ``out`` (uint32 words): next_obs,
+    obs, reward, terminated and the metrics, as float32 (the step call's output layout)."""
+    o = out.view(np.float32)
+    o[:, ws:ws + no] = r["next_obs"]
+    o[:, ws + no:ws + 2 * no] = r["obs"]
+    k = ws + 2 * no
+    o[:, k] = r["reward"]
+    o[:, k + 1] = r["terminated"]
+    for i, name in enumerate(metric_keys):
+        o[:, k + 2 + i] = r["metrics"][name]
+
+
 class HostPhysics:
     """The host side: steps and resets batches of one task's simulations in float64.
 
@@ -229,14 +243,7 @@ class HostPhysics:
                 r = s.step(f[:, :nu])
             out = np.empty((n, self.w_step_out), np.uint32)
             out[:, :ws] = s.words
-        o = out.view(np.float32)
-        o[:, ws:ws + no] = r["next_obs"]
-        o[:, ws + no:ws + 2 * no] = r["obs"]
-        k = ws + 2 * no
-        o[:, k] = r["reward"]
-        o[:, k + 1] = r["terminated"]
-        for i, name in enumerate(self.metric_keys):
-            o[:, k + 2 + i] = r["metrics"][name]
+        pack_step(out, r, ws, no, self.metric_keys)
         return out.reshape(*lead, self.w_step_out)
 
 

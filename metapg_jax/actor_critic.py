@@ -9,12 +9,13 @@ import dataclasses
 from typing import Callable
 
 import jax
+import jax.numpy as jnp
 import optax
 
 from metapg_jax import normalizer as norm_lib
 from metapg_jax.config import DDPGConfig
-from metapg_jax.networks import Actor, Critic
-from metapg_jax.types import Params
+from metapg_jax.networks import Actor, Critic, is_hidden_kernel_path
+from metapg_jax.types import Params, Transition
 
 
 @dataclasses.dataclass(frozen=True)
@@ -52,6 +53,18 @@ class ActorCritic:
     def deterministic_policy(self, actor: Params, normalizer) -> Callable[[jax.Array], jax.Array]:
         """mu(s) on raw observations: what evaluation and the look-ahead rollout D1 use."""
         return lambda obs: self.actor_apply(actor, self.normalize(normalizer, obs))
+
+    # -- learning -------------------------------------------------------------
+    def twin_critic_loss(self, critic: Params, normalizer, batch: Transition, target: jax.Array):
+        """Twin critics ``{"q1", "q2"}`` (TD3, SAC): mean (Q1(s, a) - y)^2 + mean (Q2(s, a) - y)^2 for the
+        target ``y``, plus ``critic_l2`` on both critics' hidden kernels (sum w^2 / 2). Aux: Q1's mean, the TD loss."""
+        obs = self.normalize(normalizer, batch.obs)
+        q1 = self.critic_net.apply(critic["q1"], obs, batch.action)
+        q2 = self.critic_net.apply(critic["q2"], obs, batch.action)
+        td_loss = jnp.mean(jnp.square(q1 - target)) + jnp.mean(jnp.square(q2 - target))
+        l2 = sum(jnp.sum(jnp.square(w)) for path, w in jax.tree_util.tree_leaves_with_path(critic)
+                 if is_hidden_kernel_path(path))
+        return td_loss + 0.5 * self.cfg.critic_l2 * l2, {"q_mean": jnp.mean(q1), "td_loss": td_loss}
 
 
 def actor_architecture(config) -> dict:

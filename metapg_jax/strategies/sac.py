@@ -79,7 +79,7 @@ from flax import struct
 from metapg_jax import strategy
 from metapg_jax.actor_critic import ActorCritic, actor_architecture
 from metapg_jax.config import positive
-from metapg_jax.networks import MLP, is_hidden_kernel_path
+from metapg_jax.networks import MLP
 from metapg_jax.types import Params, Transition
 
 _LOG_SQRT_2PI = 0.5 * math.log(2.0 * math.pi)
@@ -188,14 +188,7 @@ class SAC(ActorCritic):
         soft_v = jnp.minimum(q1, q2) - alpha * next_log_prob
         return jax.lax.stop_gradient(batch.reward + self.cfg.gamma * (1.0 - batch.terminated) * soft_v)
 
-    def critic_loss(self, critic: Params, normalizer, batch: Transition, target: jax.Array):
-        obs = self.normalize(normalizer, batch.obs)
-        q1 = self.critic_net.apply(critic["q1"], obs, batch.action)
-        q2 = self.critic_net.apply(critic["q2"], obs, batch.action)
-        td_loss = jnp.mean(jnp.square(q1 - target)) + jnp.mean(jnp.square(q2 - target))
-        l2 = sum(jnp.sum(jnp.square(w)) for path, w in jax.tree_util.tree_leaves_with_path(critic)
-                 if is_hidden_kernel_path(path))
-        return td_loss + 0.5 * self.cfg.critic_l2 * l2, {"q_mean": jnp.mean(q1), "td_loss": td_loss}
+    critic_loss = ActorCritic.twin_critic_loss
 
     def actor_loss(self, actor: Params, critic: Params, normalizer, batch: Transition, alpha: jax.Array,
                    key: jax.Array):
