@@ -54,6 +54,15 @@ class ActorCritic:
         """mu(s) on raw observations: what evaluation and the look-ahead rollout D1 use."""
         return lambda obs: self.actor_apply(actor, self.normalize(normalizer, obs))
 
+    def init_actor_and_twin_critics(self, key: jax.Array) -> tuple[Params, Params, jax.Array]:
+        """TD3's and SAC's initial parameters: (the actor, the twin critics ``{"q1", "q2"}``, the key left for the
+        student's state), from one key split four ways (actor, Q1, Q2, state)."""
+        k_actor, k_q1, k_q2, k_state = jax.random.split(key, 4)
+        obs = jnp.zeros((self.obs_size,), jnp.float32)
+        act = jnp.zeros((self.action_size,), jnp.float32)
+        critic = {"q1": self.critic_net.init(k_q1, obs, act), "q2": self.critic_net.init(k_q2, obs, act)}
+        return self.actor_net.init(k_actor, obs), critic, k_state
+
     # -- learning -------------------------------------------------------------
     def twin_critic_loss(self, critic: Params, normalizer, batch: Transition, target: jax.Array):
         """Twin critics ``{"q1", "q2"}`` (TD3, SAC): mean (Q1(s, a) - y)^2 + mean (Q2(s, a) - y)^2 for the

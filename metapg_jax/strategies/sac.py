@@ -144,11 +144,7 @@ class SAC(ActorCritic):
         return -self.sac.target_entropy_scale * self.action_size
 
     def init(self, key: jax.Array) -> SACState:
-        k_actor, k_q1, k_q2, k_state = jax.random.split(key, 4)
-        obs = jnp.zeros((self.obs_size,), jnp.float32)
-        act = jnp.zeros((self.action_size,), jnp.float32)
-        actor = self.actor_net.init(k_actor, obs)
-        critic = {"q1": self.critic_net.init(k_q1, obs, act), "q2": self.critic_net.init(k_q2, obs, act)}
+        actor, critic, k_state = self.init_actor_and_twin_critics(key)
         log_alpha = jnp.asarray(math.log(self.sac.init_alpha), jnp.float32)
         return SACState(actor=actor, critic=critic, target_critic=critic, actor_opt=self.actor_opt.init(actor),
                         critic_opt=self.critic_opt.init(critic), log_alpha=log_alpha,

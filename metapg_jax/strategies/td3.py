@@ -63,11 +63,7 @@ class TD3(ActorCritic):
     td3: TD3Config = TD3Config()
 
     def init(self, key: jax.Array) -> TD3State:
-        k_actor, k_q1, k_q2, k_state = jax.random.split(key, 4)
-        obs = jnp.zeros((self.obs_size,), jnp.float32)
-        act = jnp.zeros((self.action_size,), jnp.float32)
-        actor = self.actor_net.init(k_actor, obs)
-        critic = {"q1": self.critic_net.init(k_q1, obs, act), "q2": self.critic_net.init(k_q2, obs, act)}
+        actor, critic, k_state = self.init_actor_and_twin_critics(key)
         return TD3State(actor=actor, critic=critic, target_actor=actor, target_critic=critic,
                         actor_opt=self.actor_opt.init(actor), critic_opt=self.critic_opt.init(critic),
                         key=k_state, step=jnp.zeros((), jnp.int32), actor_loss=jnp.zeros((), jnp.float32))
