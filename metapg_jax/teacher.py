@@ -1,6 +1,7 @@
-"""The exploration teacher pi_e and its meta-policy-gradient update (paper section 4).
+"""The exploration teacher pi_e and its meta-policy-gradient update (paper section 4), and the registry of
+teacher designs (``meta.teacher``).
 
-Two designs (the paper's section 4, both required):
+The paper's two designs (its section 4, both required) are here:
 
 * ``independent``: pi_e(a|s) = N(f(s), diag sigma(s)^2) with a mean MLP and a
   log-std MLP of its own (64-64 each, LayerNorm as the paper's networks),
@@ -18,13 +19,18 @@ the sample clipped to [-1, 1] (for the environment and the buffer).
 
 REINFORCE (the paper's eq. 5): theta_e <- theta_e + eta * R(D0) * sum_t grad log pi_e(a_t | s_t),
 with Adam (lr 1e-4), ``teacher_steps`` steps per cycle on the same D0.
+
+Other designs are one file each in ``metapg_jax.strategies`` that subclasses :class:`Teacher` and calls
+:func:`register_design` (``residual``, ``bandit``, ``uniform``); Algorithm 1's cycle
+(``metapg_jax.strategies.meta``) asks :func:`make` for the design that ``meta.teacher`` names and uses only
+this class's methods: ``init``, ``begin_cycle``, ``sample``, ``update``, ``diagnostics``, ``normalize_reward``.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from typing import Any
+from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
@@ -49,6 +55,9 @@ class TeacherState:
 
 @dataclasses.dataclass(frozen=True)
 class Teacher:
+    """The Gaussian teacher of the paper's designs, and the base class of every other design: a design overrides
+    what differs (its parameters, its distribution, how it learns) and keeps the rest."""
+
     cfg: Any      # the meta group (metapg_jax.strategies.meta.MetaConfig)
     student: Any  # the learner whose actor the variance teacher's mean is (metapg_jax.loop: the student interface)
 
@@ -91,6 +100,10 @@ class Teacher:
         return TeacherState(params=params, opt=self.optimizer.init(params), r_hat=jnp.full((), jnp.nan, jnp.float32),
                             reward_count=zero, reward_mean=zero, reward_m2=zero)
 
+    def begin_cycle(self, state: TeacherState, key: jax.Array) -> TeacherState:
+        """Before the cycle's D0: a design that chooses something per cycle (the bandit's arm) does it here."""
+        return state
+
     def distribution(self, params: Params, student_actor: Params, obs_normalized: jax.Array):
         """(mean, log_std) of pi_e(.|s) for normalised observations (any leading axes)."""
         if self.cfg.teacher == "independent":
@@ -119,6 +132,11 @@ class Teacher:
     def entropy(self, log_std: jax.Array) -> jax.Array:
         return jnp.sum(log_std + 0.5 * _LOG_2PI_E, axis=-1)
 
+    def diagnostics(self, params: Params, student_actor: Params, obs_normalized: jax.Array) -> dict:
+        """The cycle's teacher metrics on D0's observations: mean log-std of pi_e and its mean entropy (nats)."""
+        _, log_std = self.distribution(params, student_actor, obs_normalized)
+        return {"teacher_log_std": jnp.mean(log_std), "teacher_entropy": jnp.mean(self.entropy(log_std))}
+
     def reinforce_loss(self, params, student_actor, obs_normalized, raw_actions, meta_reward):
         """-R(D0) * sum_t log pi_e(a_t|s_t): its gradient is minus the paper's eq. 5 ascent direction."""
         logp = self.log_prob(params, student_actor, obs_normalized, raw_actions)
@@ -145,3 +163,32 @@ class Teacher:
         std = jnp.sqrt(m2 / jnp.maximum(count - 1.0, 1.0))
         normalized = jnp.where(count > 1, (reward - mean) / jnp.maximum(std, 1e-6), 0.0)
         return state.replace(reward_count=count, reward_mean=mean, reward_m2=m2), normalized
+
+
+# ------------------------------------------------------------------------------------------ the designs by name
+# name -> (make(meta group, student, config) -> Teacher, a few words). The paper's two here; the others register
+# from their files in metapg_jax.strategies (imported by metapg_jax.strategy.load_builtins).
+_DESIGNS: dict[str, tuple[Callable[[Any, Any, Any], Teacher], str]] = {
+    "independent": (lambda cfg, student, config: Teacher(cfg, student), "the paper's design (ii): own mean and log-std"),
+    "variance": (lambda cfg, student, config: Teacher(cfg, student), "the paper's design (i): the student's mean"),
+}
+
+
+def register_design(name: str, make: Callable[[Any, Any, Any], Teacher], summary: str = "") -> None:
+    """Registers a teacher design (``meta.teacher=<name>``): ``make(meta group, student, config) -> Teacher``
+    (the whole config for a design that reads a config group of its own)."""
+    _DESIGNS[name] = (make, summary)
+
+
+def designs() -> dict[str, str]:
+    """Every registered design: {name: summary}, the paper's first."""
+    from metapg_jax import strategy
+
+    strategy.load_builtins()
+    return {name: summary for name, (_, summary) in _DESIGNS.items()}
+
+
+def make(config: Any, student: Any) -> Teacher:
+    """The teacher that ``config.meta.teacher`` names, for ``student``."""
+    designs()
+    return _DESIGNS[config.meta.teacher][0](config.meta, student, config)

@@ -46,6 +46,9 @@ CASES = {
     "pendulum-ddpg-mixed": ("pendulum", "ddpg", "paper", "mixed", None, "mjx"),
     "pendulum-own-pink-sac": ("pendulum", "own", "paper", "pink", None, "mjx", "sac"),
     "pendulum-meta-independent-sac": ("pendulum", "meta", "paper", None, "independent", "mjx", "sac"),
+    "pendulum-meta-residual": ("pendulum", "meta", "paper", None, "residual", "mjx"),
+    "pendulum-meta-bandit": ("pendulum", "meta", "paper", None, "bandit", "mjx"),
+    "pendulum-meta-uniform": ("pendulum", "meta", "paper", None, "uniform", "mjx"),
 }
 
 

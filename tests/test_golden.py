@@ -34,12 +34,12 @@ def test_short_runs_give_the_stored_numbers(name):
 def test_every_method_has_a_case_and_every_case_is_checked():
     from metapg_jax import strategy
     from metapg_jax.strategies import noise
-    from metapg_jax.strategies.meta import TEACHERS
+    from metapg_jax.teacher import designs
 
     kinds = {(env, method, noise or teacher) for env, method, _, noise, teacher, *_ in golden.CASES.values()}
     for env in ("pendulum",):
         assert {(env, "ddpg", n) for n in noise.names()} <= kinds
-        assert {(env, "meta", t) for t in TEACHERS} <= kinds
+        assert {(env, "meta", t) for t in designs()} <= kinds
     assert {case[1] for case in golden.CASES.values()} == set(strategy.explorers())
     assert {case[6] for case in golden.CASES.values() if len(case) > 6} | {"ddpg"} == set(strategy.students())
     assert set(golden.stored()["cases"]) == set(golden.CASES) >= set(CHECKED_ELSEWHERE)

@@ -1,6 +1,7 @@
 """The teacher and Algorithm 1: log-prob gradients, REINFORCE direction, look-ahead isolation, accounting."""
 
 import functools
+import types
 
 import jax
 import jax.numpy as jnp
@@ -11,11 +12,13 @@ from metapg_jax.strategies import meta
 from metapg_jax.config import DDPGConfig, validate
 from metapg_jax.strategies.ddpg import DDPG
 from metapg_jax.strategies.meta import MetaConfig
-from metapg_jax.teacher import Teacher
+from metapg_jax import teacher as teacher_lib
+from metapg_jax.strategies.bandit import BanditConfig
+from metapg_jax.strategies.residual import ResidualConfig
 from metapg_jax.train import make_train
 from tests.helpers import tiny_config
 
-DESIGNS = [("independent", True), ("variance", True), ("variance", False)]
+DESIGNS = [("independent", True), ("variance", True), ("variance", False), ("residual", True)]
 
 
 @functools.lru_cache(maxsize=None)
@@ -31,21 +34,25 @@ def _tiny_meta():
 FRESH_FROZEN = (("meta.baseline", "fresh"), ("meta.eval_envs", 1), ("meta.lr", 0.0))
 LOOKAHEAD_ONLY = (("meta.baseline", "lookahead"), ("meta.eval_envs", 2), ("run.warmup_steps", 10_000),
                   ("meta.student_from", "lookahead"))
+# The bandit teacher with the paired baseline over two eval envs (shared by the paired tests).
+PAIRED_BANDIT = (("meta.baseline", "paired"), ("meta.eval_envs", 2), ("meta.teacher", "bandit"))
 
 
 @functools.lru_cache(maxsize=None)
 def _tiny_cycle(overrides):
     """The tiny Meta config with ``overrides`` (pairs), its steps sized for four cycles: trainer, jitted cycle."""
     o = dict(overrides)
-    per_cycle = 50 + 100 * o.get("meta.eval_envs", 1) * (2 if o.get("meta.baseline") == "fresh" else 1)
+    per_cycle = 50 + 100 * o.get("meta.eval_envs", 1) * (2 if o.get("meta.baseline") in ("fresh", "paired") else 1)
     trainer = make_train(tiny_config("meta", steps=4 * per_cycle, eval_every=2 * per_cycle, **o))
     return trainer, jax.jit(trainer.cycle)
 
 
-def _teacher(design, state_dependent, **kw):
+def _teacher(design, state_dependent, bandit=BanditConfig(), **kw):
+    """A design (``teacher_lib.make``) for a 3-d observation, 2-d action DDPG student, and that student's actor."""
     ddpg = DDPG(DDPGConfig(hidden=(8, 8)), obs_size=3, action_size=2)
     cfg = MetaConfig(teacher=design, state_dependent_std=state_dependent, hidden=(8, 8), **kw)
-    return Teacher(cfg, ddpg), ddpg.init(jax.random.PRNGKey(5)).actor
+    config = types.SimpleNamespace(meta=cfg, residual=ResidualConfig(), bandit=bandit)
+    return teacher_lib.make(config, ddpg), ddpg.init(jax.random.PRNGKey(5)).actor
 
 
 @pytest.mark.parametrize("design,state_dependent", DESIGNS)
@@ -156,13 +163,14 @@ def test_a_zero_learning_rate_freezes_the_teacher_and_nothing_else():
         validate(tiny_config("meta", steps=300, **{"meta.lr": -1e-4}))
 
 
-@pytest.mark.parametrize("baseline,eval_envs", [("lookahead", 1), ("lookahead", 2), ("fresh", 1)])
+@pytest.mark.parametrize("baseline,eval_envs", [("lookahead", 1), ("lookahead", 2), ("fresh", 1), ("paired", 2)])
 def test_sample_accounting(baseline, eval_envs):
-    """Samples per cycle: explore_steps, plus eval_steps per evaluation env for D1 (twice with a fresh baseline).
-    (The teacher's learning rate, the warm-up and where the student comes from do not change them.)"""
-    per_cycle = 50 + 100 * eval_envs * (2 if baseline == "fresh" else 1)
+    """Samples per cycle: explore_steps, plus eval_steps per evaluation env for D1 (twice with a fresh or paired
+    baseline). (The teacher, its learning rate, the warm-up and where the student comes from do not change them.)"""
+    per_cycle = 50 + 100 * eval_envs * (2 if baseline in ("fresh", "paired") else 1)
     trainer, cycle = {("lookahead", 1): _tiny_meta, ("lookahead", 2): lambda: _tiny_cycle(LOOKAHEAD_ONLY),
-                      ("fresh", 1): lambda: _tiny_cycle(FRESH_FROZEN)}[baseline, eval_envs]()
+                      ("fresh", 1): lambda: _tiny_cycle(FRESH_FROZEN),
+                      ("paired", 2): lambda: _tiny_cycle(PAIRED_BANDIT)}[baseline, eval_envs]()
     cfg = trainer.config
     assert (cfg.meta.baseline, cfg.meta.eval_envs) == (baseline, eval_envs)
     state = trainer.init(jax.random.PRNGKey(0))
@@ -206,3 +214,85 @@ def test_meta_cycle_runs_with_both_presets_and_reward_normalisation(preset, norm
     assert np.isfinite(float(m["meta_reward"])) and np.isfinite(float(m["critic_loss"]))
     if normalize:
         assert int(state.explorer.reward_count) == 2   # the first cycle has no meta reward to normalise
+
+
+def test_the_paired_baseline_is_the_student_itself_from_the_resets_of_d1():
+    """R_hat(pi) is the cycle's own student from D1's resets (the same key: the same start states), so the meta
+    reward is the look-ahead's gain from the first cycle on; the noise metrics are the spreads over the envs."""
+    trainer, cycle = _tiny_cycle(PAIRED_BANDIT)
+    state = trainer.init(jax.random.PRNGKey(3))
+    for i in range(2):
+        k_d1 = jax.random.split(state.key, 6)[3]
+        _, returns = meta.student_rollout(trainer, state.student.actor, state.normalizer, k_d1)
+        again = meta.student_rollout(trainer, state.student.actor, state.normalizer, k_d1)[1]
+        np.testing.assert_array_equal(returns, again)
+        state, m = cycle(state)
+        np.testing.assert_allclose(m["r_hat_pi"], np.mean(returns), rtol=1e-6)
+        np.testing.assert_allclose(m["meta_reward"], m["r_hat_lookahead"] - m["r_hat_pi"], rtol=1e-5, atol=1e-4)
+        assert np.isfinite(float(m["meta_reward_sd_paired"])) and float(m["meta_reward_sd_unpaired"]) > 0
+    _, m = _tiny_meta()[1](_tiny_meta()[0].init(jax.random.PRNGKey(3)))  # one eval env, unpaired: no noise measure
+    assert np.isnan(float(m["meta_reward_sd_paired"])) and np.isnan(float(m["meta_reward_sd_unpaired"]))
+
+
+def test_the_residual_teacher_starts_at_the_student_and_stays_within_its_bound():
+    teacher, actor = _teacher("residual", True, init_log_std=-2.0)
+    state = teacher.init(jax.random.PRNGKey(0))
+    obs = jax.random.normal(jax.random.PRNGKey(1), (16, 3))
+    student = teacher.student.actor_apply(actor, obs)
+    mean, log_std = teacher.distribution(state.params, actor, obs)
+    np.testing.assert_array_equal(mean, student)            # the offset's last layer starts at zero
+    np.testing.assert_allclose(log_std, -2.0, atol=0.05)        # its log-std net starts near init_log_std
+    big = jax.tree.map(lambda x: 1e3 * jax.random.normal(jax.random.PRNGKey(2), x.shape), state.params["offset"])
+    far = teacher.distribution({**state.params, "offset": big}, actor, obs)[0]
+    assert float(jnp.max(jnp.abs(far - student))) <= teacher.max_offset + 1e-6
+    assert float(jnp.max(jnp.abs(far - student))) > 0.9 * teacher.max_offset
+    # REINFORCE moves the offset toward the rewarded actions, no further than the bound.
+    before, after = _reinforce_toy(+1.0, "residual")
+    assert after < before - 0.2, (before, after)
+    with pytest.raises(ValueError, match="residual.max_offset must be a finite number > 0"):
+        validate(tiny_config("meta", steps=300, **{"meta.teacher": "residual", "residual.max_offset": 0}))
+
+
+def test_the_bandit_tries_every_arm_then_follows_its_values():
+    teacher, actor = _teacher("bandit", True, bandit=BanditConfig(scales=(0.05, 0.1, 0.4), epsilon=0.0,
+                                                                   step_size=0.25))
+    state = teacher.init(jax.random.PRNGKey(0)).replace(r_hat=jnp.zeros(()))  # a baseline exists
+    obs = jax.random.normal(jax.random.PRNGKey(1), (4000, 3))
+    rewards = {0: 1.0, 1: 5.0, 2: -2.0}
+    for i, k in enumerate(jax.random.split(jax.random.PRNGKey(2), 3)):
+        state = teacher.begin_cycle(state, k)
+        assert int(state.params["arm"]) == i                 # every arm once, in order
+        _, raw = teacher.sample(state.params, actor, obs, k)
+        noise = np.asarray(raw - teacher.student.actor_apply(actor, obs))
+        np.testing.assert_allclose(noise.std(), teacher.bandit.scales[i], rtol=0.05)
+        state = teacher.update(state, actor, obs, raw, rewards[i])
+    np.testing.assert_allclose(state.params["values"], [1.0, 5.0, -2.0])  # a first pull: the reward itself
+    state = teacher.begin_cycle(state, jax.random.PRNGKey(3))
+    assert int(state.params["arm"]) == 1                     # greedy
+    state = teacher.update(state, actor, obs, raw, 1.0)      # second pull: step max(1/2, 0.25)
+    np.testing.assert_allclose(state.params["values"][1], 3.0)
+    np.testing.assert_allclose(state.params["pulls"], [1, 2, 1])
+    unset = teacher.update(state.replace(r_hat=jnp.full((), jnp.nan)), actor, obs, raw, 100.0)
+    assert all(jax.tree.leaves(jax.tree.map(np.array_equal, unset.params, state.params)))  # no baseline: no update
+    wild, _ = _teacher("bandit", True, bandit=BanditConfig(scales=(0.1, 0.2), epsilon=1.0))
+    seen = wild.init(jax.random.PRNGKey(0)).params
+    seen = {**seen, "pulls": jnp.ones(2)}
+    arms = [int(wild.choose(seen, k)) for k in jax.random.split(jax.random.PRNGKey(4), 200)]
+    assert 60 < sum(arms) < 140                              # epsilon 1: uniformly random
+    assert float(wild.diagnostics(seen, actor, obs)["teacher_log_std"]) == pytest.approx(np.log(0.1))
+    for bad, match in [({"bandit.scales": "-0.1"}, "bandit.scales"), ({"bandit.epsilon": 2}, "bandit.epsilon"),
+                       ({"bandit.step_size": 0}, "bandit.step_size")]:
+        with pytest.raises(ValueError, match=match):
+            validate(tiny_config("meta", steps=300, **{"meta.teacher": "bandit", **bad}))
+
+
+def test_the_uniform_teacher_draws_uniform_actions_and_learns_nothing():
+    teacher, actor = _teacher("uniform", True)
+    state = teacher.init(jax.random.PRNGKey(0))
+    obs = jax.random.normal(jax.random.PRNGKey(1), (20000, 3))
+    action, raw = teacher.sample(state.params, actor, obs, jax.random.PRNGKey(2))
+    assert action.shape == (20000, 2) and float(jnp.min(action)) >= -1 and float(jnp.max(action)) <= 1
+    np.testing.assert_allclose(np.var(np.asarray(action), axis=0), 1 / 3, rtol=0.03)
+    assert teacher.update(state, actor, obs, raw, 7.0) is state
+    with pytest.raises(ValueError, match="unknown teacher 'nope'; valid teachers: independent, variance"):
+        validate(tiny_config("meta", steps=300, **{"meta.teacher": "nope"}))

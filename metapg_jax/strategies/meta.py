@@ -11,13 +11,22 @@ Per seed, per cycle (../shared/DESIGN.md steps 1-8; defaults in brackets):
    the return of the *first* episode, truncated at ``eval_steps``.
 4. Meta reward R(D0) = R_hat(pi') - R_hat(pi), R_hat(pi) carried from the
    previous cycle. Before the first estimate exists it is 0 (see deviations).
+   With ``baseline='paired'`` (ours) R_hat(pi) is a rollout of the student pi
+   itself from the same resets as D1's (stored and counted like D1), so the
+   difference is the look-ahead's gain on the same start states, from the
+   first cycle on.
 5. Teacher: ``teacher_steps`` [1] Adam steps of REINFORCE (eq. 5) on D0.
 6. Buffer <- D0, D1 (and the normaliser sees their observations).
 7. Student: ``train_steps`` [50] DDPG updates on the buffer, starting from pi
    (``student_from='pi'``, the paper) or from pi' (``'lookahead'``).
 8. R_hat(pi) for the next cycle: R_hat(pi') (``baseline='lookahead'``, no
    extra samples) or a fresh rollout D2 of the updated student
-   (``baseline='fresh'``; D2 is stored and counted like D1).
+   (``baseline='fresh'``; D2 is stored and counted like D1); nothing with
+   ``baseline='paired'``.
+
+The teacher is the design ``meta.teacher`` names (``metapg_jax.teacher``: the paper's two, and one file each in
+this package for the others). With two or more eval envs the cycle also measures the meta reward's noise: the
+spread over the envs of the per-env differences of the paired rollouts, and what it would be unpaired.
 
 Deviations from the paper's Algorithm 1 (also in docs/algorithm.md):
 * Lines 2-3 (an initial D1 from pi to estimate R_hat(pi) and seed the buffer)
@@ -55,6 +64,7 @@ from metapg_jax import strategy
 from metapg_jax.config import positive
 from metapg_jax.loop import TrainState, Trainer, flatten_time, train_updates
 from metapg_jax.rollout import completed_episode_mean, rollout
+from metapg_jax import teacher as teacher_lib
 from metapg_jax.teacher import Teacher, TeacherState
 
 
@@ -62,7 +72,9 @@ from metapg_jax.teacher import Teacher, TeacherState
 class MetaConfig:
     """The teacher and Algorithm 1's schedule (../shared/DESIGN.md, paper section 4 and 5.1)."""
 
-    teacher: str = "independent"    # 'independent' (own mean + log-std MLPs) or 'variance' (student mean)
+    # 'independent' (own mean + log-std MLPs), 'variance' (student mean), or another registered design
+    # (metapg_jax.teacher.designs(): residual, bandit, uniform)
+    teacher: str = "independent"
     hidden: tuple[int, ...] = (64, 64)
     layer_norm: bool = True         # the paper uses LayerNorm in its policy networks
     # Variance teacher: log-std MLP (True, our default, like the log-std network of the paper's
@@ -80,7 +92,9 @@ class MetaConfig:
     lookahead_steps: int = 0
     eval_envs: int = 1              # parallel envs for D1
     student_from: str = "pi"        # student update starts from pi (paper) or pi'
-    baseline: str = "lookahead"     # R_hat(pi) for the next cycle: R_hat(pi') or a fresh rollout
+    # R_hat(pi): the previous cycle's R_hat(pi') ('lookahead'), a fresh rollout of the updated student ('fresh'),
+    # or a rollout of this cycle's student from D1's resets ('paired', ours)
+    baseline: str = "lookahead"
     normalize_meta_reward: bool = False  # running mean/std of the meta reward (our addition)
 
 
@@ -98,7 +112,8 @@ def paper_schedule(task: str) -> dict[str, int]:
 
 
 def make_teacher(trainer: Trainer) -> Teacher:
-    return Teacher(trainer.config.meta, trainer.student)
+    """The design ``meta.teacher`` names (``metapg_jax.teacher.make``)."""
+    return teacher_lib.make(trainer.config, trainer.student)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -124,9 +139,11 @@ def first_episode_return(rewards: jax.Array, dones: jax.Array) -> jax.Array:
 
 
 def student_rollout(trainer: Trainer, actor, normalizer, key: jax.Array):
-    """D1 (or D2): the deterministic student from fresh resets in ``eval_envs`` envs.
+    """D1 (or D2): the deterministic student from fresh resets in ``eval_envs`` envs; the same ``key`` gives the
+    same resets (the paired baseline's rollout of pi starts where D1's of pi' did).
 
-    Returns (flat transitions (eval_envs * eval_steps), R_hat = mean first-episode return).
+    Returns (flat transitions (eval_envs * eval_steps), each env's first-episode return (eval_envs,)); R_hat is
+    their mean.
     """
     cfg = trainer.config.meta
     act = trainer.student.deterministic_policy(actor, normalizer)
@@ -138,9 +155,15 @@ def student_rollout(trainer: Trainer, actor, normalizer, key: jax.Array):
         _, _, tr, stats, _ = rollout(trainer.env, policy, env_state, None, k, cfg.eval_steps)
         return tr, first_episode_return(tr.reward, stats.done)
 
-    transitions, r_hat = jax.vmap(one_env)(env_states, jax.random.split(k_roll, cfg.eval_envs))
+    transitions, returns = jax.vmap(one_env)(env_states, jax.random.split(k_roll, cfg.eval_envs))
     # (envs, T, ...) -> (envs * T, ...)
-    return flatten_time(transitions), jnp.mean(r_hat)
+    return flatten_time(transitions), returns
+
+
+def _sd(x: jax.Array) -> jax.Array:
+    """Sample standard deviation (ddof 1) over the last axis; NaN for fewer than two values."""
+    n = x.shape[-1]
+    return jnp.sqrt(jnp.sum(jnp.square(x - jnp.mean(x, -1, keepdims=True)), -1) / (n - 1)) if n > 1 else jnp.nan
 
 
 def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
@@ -150,6 +173,7 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     teacher = make_teacher(trainer)
     tstate: TeacherState = state.explorer
     key, k_d0, k_look, k_d1, k_train, k_d2 = jax.random.split(state.key, 6)
+    tstate = teacher.begin_cycle(tstate, jax.random.fold_in(k_d0, 1))
     student, normalizer = state.student, state.normalizer
     norm = lambda obs: learner.normalize(normalizer, obs)
 
@@ -170,9 +194,17 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
                                             m.lookahead_steps or cfg.run.train_steps)
 
     # 3. D1 from pi' and R_hat(pi').
-    d1, r_hat_lookahead = student_rollout(trainer, lookahead.actor, normalizer, k_d1)
+    d1, returns_lookahead = student_rollout(trainer, lookahead.actor, normalizer, k_d1)
+    r_hat_lookahead = jnp.mean(returns_lookahead)
 
-    # 4. Meta reward (0 until R_hat(pi) exists).
+    # 4. Meta reward (0 until R_hat(pi) exists). Paired: R_hat(pi) now, from D1's resets.
+    if m.baseline == "paired":
+        d_pi, returns_pi = student_rollout(trainer, student.actor, normalizer, k_d1)
+        tstate = tstate.replace(r_hat=jnp.mean(returns_pi))
+        noise = {"meta_reward_sd_paired": _sd(returns_lookahead - returns_pi),
+                 "meta_reward_sd_unpaired": jnp.sqrt(jnp.square(_sd(returns_lookahead)) + jnp.square(_sd(returns_pi)))}
+    else:
+        noise = {"meta_reward_sd_paired": jnp.nan, "meta_reward_sd_unpaired": jnp.nan}
     have_baseline = jnp.isfinite(tstate.r_hat)
     meta_reward = jnp.where(have_baseline, r_hat_lookahead - tstate.r_hat, 0.0)
     signal = meta_reward
@@ -189,6 +221,8 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     # 6. Buffer <- D0, D1 (the teacher's states and the student's, in the visitation sample).
     state = trainer.store(state.replace(env_state=env_state, key=key), d0)
     state = trainer.store(state, d1, source="student")
+    if m.baseline == "paired":
+        state = trainer.store(state, d_pi, source="student")
 
     # 7. Student update on the buffer, from pi (paper) or from pi'.
     if m.student_from == "lookahead":
@@ -198,14 +232,14 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     # 8. R_hat(pi) for the next cycle.
     r_hat_pi = tstate.r_hat
     if m.baseline == "fresh":
-        d2, r_hat_next = student_rollout(trainer, state.student.actor, state.normalizer, k_d2)
+        d2, returns_next = student_rollout(trainer, state.student.actor, state.normalizer, k_d2)
+        r_hat_next = jnp.mean(returns_next)
         state = trainer.store(state, d2, source="student")
     else:
         r_hat_next = r_hat_lookahead
     state = state.replace(explorer=tstate.replace(r_hat=r_hat_next))
 
     # Teacher diagnostics on D0 (with the teacher before its update, which produced D0).
-    _, log_std = teacher.distribution(params_d0, student.actor, d0_obs_n)
     student_action = learner.actor_apply(student.actor, d0_obs_n)
     ret_mean, n_eps = completed_episode_mean(d0_stats)
     metrics = {
@@ -215,18 +249,18 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
         "meta_reward": meta_reward,
         "r_hat_pi": r_hat_pi,
         "r_hat_lookahead": r_hat_lookahead,
-        "teacher_log_std": jnp.mean(log_std),
-        "teacher_entropy": jnp.mean(teacher.entropy(log_std)),
+        **teacher.diagnostics(params_d0, student.actor, d0_obs_n),
         "teacher_student_distance": jnp.sqrt(jnp.mean(jnp.square(d0.action - student_action))),
+        **noise,
     }
     return state, metrics
 
 
 # ---------------------------------------------------------------------------------------------- the strategy
 NAME = "meta"
-TEACHERS = ("independent", "variance")
+TEACHERS = ("independent", "variance")  # the paper's designs; every registered one: metapg_jax.teacher.designs()
 STUDENT_FROM = ("pi", "lookahead")
-BASELINES = ("lookahead", "fresh")
+BASELINES = ("lookahead", "fresh", "paired")
 # The tuned preset's changes to the paper preset's Meta schedule, each from a screen cell at 300k steps
 # (results/screen/README.md); applied after the overrides, a field that --set names is left as set.
 TUNED_META = {
@@ -277,16 +311,17 @@ def _derive(config, overrides: dict[str, Any]):
 
 
 def steps_per_cycle(config) -> int:
-    """D0, D1 in every eval env, and D2 with ``baseline='fresh'``: every step a cycle stores."""
+    """D0, D1 in every eval env, and D2 (``baseline='fresh'``) or pi's rollout (``'paired'``): every step a cycle
+    stores."""
     m = config.meta
-    fresh = m.eval_steps * m.eval_envs if m.baseline == "fresh" else 0
+    fresh = m.eval_steps * m.eval_envs if m.baseline in ("fresh", "paired") else 0
     return m.explore_steps + m.eval_steps * m.eval_envs + fresh
 
 
 def _validate(config) -> None:
     m = config.meta
-    if m.teacher not in TEACHERS:
-        raise ValueError(f"unknown teacher {m.teacher!r}; valid teachers: {', '.join(TEACHERS)}")
+    if m.teacher not in teacher_lib.designs():
+        raise ValueError(f"unknown teacher {m.teacher!r}; valid teachers: {', '.join(teacher_lib.designs())}")
     if m.student_from not in STUDENT_FROM:
         raise ValueError(f"meta.student_from must be one of {', '.join(STUDENT_FROM)}, got {m.student_from!r}")
     if m.baseline not in BASELINES:
@@ -307,7 +342,7 @@ def _validate(config) -> None:
 
 
 CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_log_std", "teacher_entropy",
-                 "teacher_student_distance")
+                 "teacher_student_distance", "meta_reward_sd_paired", "meta_reward_sd_unpaired")
 
 strategy.register_explorer(
     NAME, lambda config: TeacherExplorer(config.meta), group=MetaConfig, group_defaults=_group_defaults,
