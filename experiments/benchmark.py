@@ -56,7 +56,7 @@ import time
 
 from experiments import reproduce
 from experiments.build import benchmark as artefacts
-from experiments.build.grid import STRATEGIES, STUDENT_NAMES, TASKS, task_folder
+from experiments.build.grid import LEARNED, STRATEGIES, STUDENT_NAMES, TASKS, task_folder
 from experiments.training import grid_cells
 
 DEFAULT_NAME = "exploration"
@@ -70,6 +70,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 def build_parser() -> argparse.ArgumentParser:
     strategies = "; ".join(f"{s}: {', '.join(m)}" for s, m in STRATEGIES.items())
+    learned = "; ".join(f"{s}: {', '.join(m)}" for s, m in LEARNED.items())
     p = argparse.ArgumentParser(prog="python -m experiments.benchmark", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--tasks", default=",".join(TASKS),
@@ -78,7 +79,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"comma-separated students (default {','.join(DEFAULT_STUDENTS)})")
     p.add_argument("--strategies", default=None,
                    help=f"comma-separated strategies (grid methods) of those students (default: all; each student's "
-                        f"Gaussian-noise baseline is always planned): {strategies}")
+                        f"Gaussian-noise baseline is always planned): {strategies}; and, only when named, the "
+                        f"learned-exploration variants and controls (results/learned/README.md): {learned}")
     p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, help=f"seeds per cell (default {DEFAULT_SEEDS})")
     p.add_argument("--seed", type=int, default=DEFAULT_SEED,
                    help=f"base PRNG seed of every cell (default {DEFAULT_SEED})")
@@ -139,7 +141,7 @@ def entries(a: argparse.Namespace) -> list[artefacts.Entry]:
     students = reproduce.parse_list(a.students, tuple(STRATEGIES), "student")
     if a.strategies is None:
         return artefacts.entries_for(students)
-    valid = tuple(dict.fromkeys(m for s in students for m in STRATEGIES[s]))
+    valid = tuple(dict.fromkeys(m for s in students for m in (*STRATEGIES[s], *LEARNED.get(s, ()))))
     return artefacts.entries_for(students, reproduce.parse_list(a.strategies, valid, "strategy"))
 
 

@@ -70,6 +70,23 @@ def test_the_default_plan_and_a_gym_task(tmp_path, capsys, monkeypatch):
     assert grid.task_name("gym:Walker2d-v5") == "Walker2d-v5" and grid.task_name("hopper") == "Hopper"
 
 
+def test_the_learned_variants_are_entries_only_when_named_and_share_one_cycle_on_every_task(tmp_path, monkeypatch):
+    """results/learned/README.md: the variants and controls run under the tuned preset in one 750-step cycle (a third
+    of it D0, the paired baseline) that divides the budget and the evaluation interval on all six tasks."""
+    monkeypatch.chdir(tmp_path)
+    assert all(e.method not in grid.LEARNED_METHODS for e in artefacts.entries_for(["td3", "sac"]))
+    a = benchmark.build_parser().parse_args(["--students", "td3,sac", "--strategies", ",".join(grid.LEARNED_METHODS)])
+    tasks, chosen, cells = benchmark.plan(a)      # every cell's config validated
+    assert [e.method for e in chosen] == ["td3-normal", *grid.LEARNED_METHODS, "sac-own", *grid.LEARNED_METHODS]
+    for cell in cells:
+        if cell.method in grid.LEARNED_METHODS:
+            cfg = grid_cells.requested_config(cell.args, cell.task, cell.method)
+            assert (cfg.preset, cfg.steps_per_cycle, cfg.meta.explore_steps, cfg.meta.baseline) == \
+                ("tuned", 750, 250, "paired"), cell.tag
+            assert (cfg.run.train_steps, cfg.meta.lookahead_steps, cfg.meta.teacher_steps) == (375, 125, 1), cell.tag
+    assert len(cells) == 6 * 14 and not (tmp_path / "runs").exists()
+
+
 def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_rest(tmp_path, capsys):
     runs, results = tmp_path / "runs", tmp_path / "res"
     argv = ["--tasks", "pendulum,reacher", "--students", "td3,sac", "--strategies", "td3-normal,td3-pink,sac-own",

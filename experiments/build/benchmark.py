@@ -27,7 +27,7 @@ from typing import Sequence
 import numpy as np
 
 from experiments.build import cells, stats, tables
-from experiments.build.grid import (METHOD_NAMES, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, noise_methods,
+from experiments.build.grid import (LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, noise_methods,
                                     task_folder, task_name)
 
 # The preset of every student's grid (a grid method with a preset of its own, the tuned teacher, keeps it).
@@ -75,11 +75,13 @@ class Entry:
 
 
 def entries_for(students: Sequence[str], strategies: Sequence[str] | None = None) -> list[Entry]:
-    """The entries of ``students`` (``STRATEGIES`` order), restricted to ``strategies`` (grid methods) when given;
-    each student's Gaussian-noise baseline is always one of them (every other entry is judged against it)."""
+    """The entries of ``students`` (``STRATEGIES`` order, then ``LEARNED``'s), restricted to ``strategies`` (grid
+    methods) when given, else ``STRATEGIES``' only; each student's Gaussian-noise baseline is always one of them
+    (every other entry is judged against it)."""
     out = []
     for s in students:
         chosen = [m for m in STRATEGIES[s] if strategies is None or m in strategies or m == STUDENT_BASELINES[s]]
+        chosen += [m for m in LEARNED.get(s, ()) if strategies is not None and m in strategies]
         out += [Entry(s, m) for m in chosen]
     return out
 

@@ -15,6 +15,12 @@ TASKS = ("inverted_double_pendulum", "inverted_pendulum", "hopper", "pendulum", 
 TASK_NAMES = {"pendulum": "Pendulum", "inverted_pendulum": "InvertedPendulum",
               "inverted_double_pendulum": "InvertedDoublePendulum", "hopper": "Hopper",
               "halfcheetah": "HalfCheetah", "reacher": "Reacher"}
+# The cycle of the learned-exploration variants and their controls on every task: D0 250 steps; D1 and the paired
+# rollout of pi 125 steps from the same resets in 2 envs each; 750 stored steps, a third of them D0 (as the paper
+# preset's cycle); a look-ahead of half an update per D0 step (as the paper preset on every task); 20 cycles per
+# 15,000-step evaluation interval. The tuned preset adds one teacher step and student updates for half the cycle.
+PAIRED_CYCLE = ("--set", "meta.baseline=paired", "--set", "meta.eval_envs=2", "--set", "meta.explore_steps=250",
+                "--set", "meta.eval_steps=125", "--set", "meta.lookahead_steps=125")
 # Grid method name -> experiments.run options.
 METHODS = {
     "meta-independent": ["--method=meta", "--teacher=independent"],
@@ -40,16 +46,29 @@ METHODS = {
     "sac-pink": ["--method=own", "--noise=pink"],
     # The paper's teacher collecting a SAC student's data (the student itself never acts during training).
     "sac-meta": ["--method=meta", "--teacher=independent"],
+    # Learned exploration, second attempt (results/learned/README.md; LEARNED): teacher designs and controls under
+    # the tuned schedule (METHOD_PRESETS) with the paired meta reward, all in one cycle (PAIRED_CYCLE).
+    "learned-paired": ["--method=meta", "--teacher=independent", *PAIRED_CYCLE],
+    # The residual teacher starts as the student with TD3's Gaussian noise 0.1 (log-std -2.3).
+    "learned-residual": ["--method=meta", "--teacher=residual", "--set", "meta.init_log_std=-2.3", *PAIRED_CYCLE],
+    "learned-bandit": ["--method=meta", "--teacher=bandit", *PAIRED_CYCLE],
+    # Controls in the same cycle: D0 uniformly random; the student with TD3's Gaussian noise 0.1; the student alone.
+    "control-uniform": ["--method=meta", "--teacher=uniform", *PAIRED_CYCLE],
+    "control-fixed": ["--method=meta", "--teacher=bandit", "--set", "bandit.scales=0.1", *PAIRED_CYCLE],
+    "control-noiseless": ["--method=meta", "--teacher=bandit", "--set", "bandit.scales=0", *PAIRED_CYCLE],
 }
 # A grid method that runs under a preset of its own, overriding the grid's (``experiments.reproduce --preset``, the
 # benchmark's): its cells get ``--preset=<this>`` (experiments.training.grid_cells.cell_argv).
-METHOD_PRESETS = {"meta-tuned": "tuned"}
+METHOD_PRESETS = {"meta-tuned": "tuned", **{m: "tuned" for m in METHODS if m.startswith(("learned-", "control-"))}}
 METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta (variance)",
                 "ddpg-paramnoise": "DDPG (param noise)", "ddpg-normal": "DDPG (normal noise)",
                 "td3-normal": "TD3 (normal noise)", "td3-pink": "TD3 (pink noise)", "td3-mixed": "TD3 (mixed scales)",
                 "sac-own": "SAC (own policy)", "sac-pink": "SAC (pink noise)", "td3-ou": "TD3 (OU noise)",
                 "td3-paramnoise": "TD3 (param noise)", "meta-tuned": "Meta (tuned)",
-                "sac-meta": "SAC + Meta (independent)"}
+                "sac-meta": "SAC + Meta (independent)", "learned-paired": "Meta (paired reward)",
+                "learned-residual": "residual teacher", "learned-bandit": "bandit over noise scales",
+                "control-uniform": "control: uniform D0", "control-fixed": "control: D0 with noise 0.1",
+                "control-noiseless": "control: noiseless D0"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
 # for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/strategies/noise.py); the tuned
@@ -70,6 +89,11 @@ STUDENT_BASELINES = {"td3": "td3-normal", "sac": "sac-own"}
 STRATEGIES = {"td3": ("td3-normal", "td3-ou", "td3-paramnoise", "td3-pink", "td3-mixed", "meta-independent",
                       "meta-tuned"),
               "sac": ("sac-own", "sac-pink", "sac-meta")}
+# Learned exploration, second attempt (results/learned/README.md): each student's teacher designs and their controls,
+# entries of the benchmark only when named (``experiments.benchmark --strategies``), never in its default plan.
+LEARNED_METHODS = ("learned-paired", "learned-residual", "learned-bandit", "control-uniform", "control-fixed",
+                   "control-noiseless")
+LEARNED = {"td3": LEARNED_METHODS, "sac": LEARNED_METHODS}
 # The student of a grid method that only one student's grid or strategies have (the others: DDPG's).
 STUDENT_OF = {m: student for table in (GRIDS, STRATEGIES) for student, methods in table.items() if student != "ddpg"
               for m in methods if m not in GRIDS["ddpg"]}
