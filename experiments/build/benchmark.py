@@ -37,7 +37,7 @@ BEST_NOISE_RULE = (
     "the best fixed noise of a student is the strategy with the highest IQM among its strategies that explore with "
     "noise (not a learned teacher), chosen on the same seeds that the probabilities of improvement are computed "
     "on, so P(X > best fixed noise) is optimistic for the best noise (a choice made in advance on other seeds, "
-    "issue #42, would not be)")
+    "as the learned-exploration judgement makes it, would not be)")
 CURVES_DEFINITION = (
     "per evaluation point: the IQM of the seeds' normalised evaluation returns (each evaluation: the mean return of "
     "`run.eval_episodes` deterministic episodes) pooled over the aggregate's tasks, at the env steps where every "
