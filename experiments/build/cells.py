@@ -8,13 +8,14 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import gzip
 import json
 import os
 from typing import Iterable
 
 import numpy as np
 
-from experiments.build.grid import BASELINE, META, METHODS, TASKS, task_folder
+from experiments.build.grid import BASELINE, LEARNED_METHODS, META, METHODS, TASKS, task_folder
 from experiments.build.stats import final_returns
 from metapg_jax.host import metric_rows, provenance, runfiles
 
@@ -124,6 +125,9 @@ DIFF_PATTERN = "uncommitted-*.diff"
 # visits.npz (the state-visitation sample) is kept for the two methods the figure compares, thinned to
 # this many states per seed and array (evenly spaced; the figure draws <= 500 points per panel).
 ARCHIVE_VISITS_PER_SEED = 250
+# cycles.jsonl (a teacher's per-cycle metrics) is kept, gzipped, for the learned-exploration variants and controls
+# (grid.LEARNED_METHODS): their diagnostics (experiments.build.learned) read it per cycle.
+ARCHIVE_CYCLES = "cycles.jsonl.gz"
 
 
 def results_dir_for(results_dir: str, preset: str) -> str:
@@ -168,10 +172,18 @@ def thin_visits(visits: dict) -> dict:
 def archive_cell(run_path: str, archive_path: str, method: str, baseline: str = BASELINE) -> bool:
     """Copies a finished run folder's results into the archive (atomically, file by file); False if the
     run is not finished. Re-archiving a cell replaces its files. The visitation sample is kept for the
-    methods of the visitation figure only (Meta independent and ``baseline``)."""
+    methods of the visitation figure only (Meta independent and ``baseline``), the per-cycle metrics for the
+    learned-exploration methods only (``ARCHIVE_CYCLES``)."""
     if not os.path.exists(os.path.join(run_path, "summary.json")):
         return False
     copy_result_files(run_path, archive_path)
+    cycles = os.path.join(run_path, "cycles.jsonl")
+    if method in LEARNED_METHODS and os.path.exists(cycles):
+        tmp = os.path.join(archive_path, ARCHIVE_CYCLES + ".tmp")
+        with open(cycles, "rb") as src, open(tmp, "wb") as raw:
+            with gzip.GzipFile(fileobj=raw, mode="wb", mtime=0, filename="") as out:  # the same bytes every time
+                out.write(src.read())
+        os.replace(tmp, os.path.join(archive_path, ARCHIVE_CYCLES))
     visits = os.path.join(run_path, "visits.npz")
     if method in (META, baseline) and os.path.exists(visits):
         with np.load(visits) as v:

@@ -1,0 +1,80 @@
+"""The learned-exploration diagnostics (experiments.build.learned) on a fabricated archive, and the archive of a
+learned variant's per-cycle metrics (experiments.build.cells.archive_cell)."""
+
+import gzip
+import json
+import math
+import os
+
+import numpy as np
+
+from experiments.build import cells, learned
+
+
+def _cycles(seeds):
+    """Rows of cycles.jsonl: {seed: [(arm scale, meta reward, sd paired, sd unpaired, distance), ...]}."""
+    return [{"seed": s, "cycle": c, "meta_reward": r, "teacher_log_std": math.log(scale), "r_hat_pi": 0.0,
+             "meta_reward_sd_paired": p, "meta_reward_sd_unpaired": u, "teacher_student_distance": d}
+            for s, rows in seeds.items() for c, (scale, r, p, u, d) in enumerate(rows)]
+
+
+def _run(path, config, rows):
+    os.makedirs(path)
+    with open(os.path.join(path, "config.json"), "w") as f:
+        json.dump({"config": config}, f)
+    for name in ("summary.json", "metrics.jsonl"):
+        with open(os.path.join(path, name), "w") as f:
+            f.write("{}\n")
+    with open(os.path.join(path, "cycles.jsonl"), "w") as f:
+        f.writelines(json.dumps(r) + "\n" for r in rows)
+
+
+def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
+    # 120 cycles per seed; the last 100 are read. Seed 0 favours 0.4 (80 of 100), seed 1 splits 50/50 (not over
+    # half), seed 2 only 0.1; the first 20 cycles (ignored) all use 0.1 with a huge meta reward.
+    early = [(0.1, 1e6, 9.0, 9.0, 9.0)] * 20
+    seeds = {0: early + [(0.4, 2.0, 1.0, 4.0, 0.2)] * 80 + [(0.1, 2.0, 1.0, 4.0, 0.2)] * 20,
+             1: early + [(0.4, -2.0, 1.0, 4.0, 0.4)] * 50 + [(0.1, -2.0, 3.0, 4.0, 0.4)] * 50,
+             2: early + [(0.1, 2.0, float("nan"), 4.0, 0.6)] * 100}
+    run = tmp_path / "runs" / "learned-bandit"
+    _run(str(run), {"meta": {"teacher": "bandit"}, "bandit": {"scales": [0.1, 0.4]}}, _cycles(seeds))
+    archive = tmp_path / "res" / "td3" / "cells" / "hopper" / "learned-bandit"
+    assert cells.archive_cell(str(run), str(archive), "learned-bandit")
+    first = (archive / cells.ARCHIVE_CYCLES).read_bytes()
+    assert cells.archive_cell(str(run), str(archive), "learned-bandit")       # re-archived: the same bytes
+    assert (archive / cells.ARCHIVE_CYCLES).read_bytes() == first
+    with gzip.open(archive / cells.ARCHIVE_CYCLES, "rt") as f:
+        assert len(f.readlines()) == 360
+
+    d = learned.cell_diagnostics(str(archive))
+    assert d["seeds"] == 3 and d["cycles_per_seed"] == 100
+    # the median over 200 finite values (seed 2's NaN dropped): 150 ones and 50 threes
+    assert d["sd_paired_median"] == 1.0 and d["sd_unpaired_median"] == 4.0 and d["sd_ratio"] == 0.25
+    rewards = np.array([2.0] * 100 + [-2.0] * 100 + [2.0] * 100)
+    assert np.isclose(d["meta_reward_mean"], rewards.mean()) and np.isclose(d["meta_reward_std"], rewards.std(ddof=1))
+    assert np.isclose(d["meta_reward_snr"], abs(rewards.mean()) / rewards.std(ddof=1))
+    assert np.isclose(d["distance_mean"], 0.4) and np.isclose(d["distance_std"], 0.2)
+    b = d["bandit"]
+    assert [f["scale"] for f in b["favourites"]][::2] == [0.4, 0.1]   # seed 1's tie goes to either
+    assert [f["share"] for f in b["favourites"]] == [0.8, 0.5, 1.0]
+    assert b["seeds_over_half"] == 2
+
+    # The report: every learned method of the student on the task, the missing ones said as such.
+    out = tmp_path / "res"
+    assert learned.main(["--results-dir", str(out), "--tasks", "hopper"]) == 0
+    md = (out / "diagnostics.md").read_text()
+    row = next(line for line in md.splitlines() if "| bandit over noise scales |" in line)
+    assert "| 3 | 1.000 | 4.000 | 0.25 |" in row and "| 2 of 3 |" in row
+    assert md.count("| not run |") == 5
+    rows = [line for line in md.splitlines() if line.startswith("| TD3 ")]
+    assert len(rows) == 6 and all(line.count("|") == 13 for line in rows)
+    assert json.loads((out / "diagnostics.json").read_text())["cells"][2]["bandit"]["seeds_over_half"] == 2
+
+
+def test_only_the_learned_methods_keep_their_cycles(tmp_path):
+    run = tmp_path / "run"
+    _run(str(run), {"meta": {"teacher": "independent"}}, _cycles({0: [(0.5, 1.0, 1.0, 1.0, 1.0)]}))
+    assert cells.archive_cell(str(run), str(tmp_path / "a"), "meta-independent")
+    assert not (tmp_path / "a" / cells.ARCHIVE_CYCLES).exists()
+    assert learned.cell_diagnostics(str(tmp_path / "a")) == {"state": "no per-cycle metrics archived"}
+    assert learned.cell_diagnostics(str(tmp_path / "none")) == {"state": "not run"}
