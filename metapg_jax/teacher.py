@@ -21,7 +21,7 @@ REINFORCE (the paper's eq. 5): theta_e <- theta_e + eta * R(D0) * sum_t grad log
 with Adam (lr 1e-4), ``teacher_steps`` steps per cycle on the same D0.
 
 Other designs are one file each in ``metapg_jax.strategies`` that subclasses :class:`Teacher` and calls
-:func:`register_design` (``residual``, ``bandit``, ``uniform``); Algorithm 1's cycle
+:func:`register_design` (:func:`designs` lists them); Algorithm 1's cycle
 (``metapg_jax.strategies.meta``) asks :func:`make` for the design that ``meta.teacher`` names and uses only
 this class's methods: ``init``, ``begin_cycle``, ``sample``, ``update``, ``diagnostics``, ``normalize_reward``.
 """

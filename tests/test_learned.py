@@ -34,8 +34,8 @@ def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
     # half), seed 2 only 0.1; the first 20 cycles (ignored) all use 0.1 with a huge meta reward.
     early = [(0.1, 1e6, 9.0, 9.0, 9.0)] * 20
     seeds = {0: early + [(0.4, 2.0, 1.0, 4.0, 0.2)] * 80 + [(0.1, 2.0, 1.0, 4.0, 0.2)] * 20,
-             1: early + [(0.4, -2.0, 1.0, 4.0, 0.4)] * 50 + [(0.1, -2.0, 3.0, 4.0, 0.4)] * 50,
-             2: early + [(0.1, 2.0, float("nan"), 4.0, 0.6)] * 100}
+             1: early + [(0.4, -2.0, 1.0, 4.0, 0.4)] * 50 + [(0.1, -2.0, 7.0, 4.0, 0.4)] * 50,
+             2: early + [(0.1, 2.0, None, 4.0, 0.6)] * 100}      # a NaN is written as null (runfiles.json_number)
     run = tmp_path / "runs" / "learned-bandit"
     _run(str(run), {"meta": {"teacher": "bandit"}, "bandit": {"scales": [0.1, 0.4]}}, _cycles(seeds))
     archive = tmp_path / "res" / "td3" / "cells" / "hopper" / "learned-bandit"
@@ -48,8 +48,9 @@ def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
 
     d = learned.cell_diagnostics(str(archive))
     assert d["seeds"] == 3 and d["cycles_per_seed"] == 100
-    # the median over 200 finite values (seed 2's NaN dropped): 150 ones and 50 threes
-    assert d["sd_paired_median"] == 1.0 and d["sd_unpaired_median"] == 4.0 and d["sd_ratio"] == 0.25
+    # RMS over the 200 finite values (seed 2's nulls dropped): 150 ones and 50 sevens -> sqrt((150 + 50 * 49) / 200)
+    assert np.isclose(d["sd_paired_rms"], np.sqrt(13.0)) and d["sd_unpaired_rms"] == 4.0
+    assert np.isclose(d["sd_ratio"], np.sqrt(13.0) / 4.0)
     rewards = np.array([2.0] * 100 + [-2.0] * 100 + [2.0] * 100)
     assert np.isclose(d["meta_reward_mean"], rewards.mean()) and np.isclose(d["meta_reward_std"], rewards.std(ddof=1))
     assert np.isclose(d["meta_reward_snr"], abs(rewards.mean()) / rewards.std(ddof=1))
@@ -64,7 +65,7 @@ def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
     assert learned.main(["--results-dir", str(out), "--tasks", "hopper"]) == 0
     md = (out / "diagnostics.md").read_text()
     row = next(line for line in md.splitlines() if "| bandit over noise scales |" in line)
-    assert "| 3 | 1.000 | 4.000 | 0.25 |" in row and "| 2 of 3 |" in row
+    assert "| 3 | 3.606 | 4.000 | 0.90 |" in row and "| 2 of 3 |" in row
     assert md.count("| not run |") == 5
     rows = [line for line in md.splitlines() if line.startswith("| TD3 ")]
     assert len(rows) == 6 and all(line.count("|") == 13 for line in rows)

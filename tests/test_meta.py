@@ -120,8 +120,9 @@ def test_reinforce_moves_teacher_toward_higher_meta_reward():
     assert after > before + 0.2, (before, after)
 
 
-def test_variance_teacher_never_changes_the_student():
-    teacher, actor = _teacher("variance", True)
+@pytest.mark.parametrize("design", ["variance", "residual"])
+def test_a_teacher_around_the_student_never_changes_the_student(design):
+    teacher, actor = _teacher(design, True)
     state = teacher.init(jax.random.PRNGKey(0))
     obs = jax.random.normal(jax.random.PRNGKey(1), (5, 3))
     _, raw = teacher.sample(state.params, actor, obs, jax.random.PRNGKey(2))
@@ -129,7 +130,8 @@ def test_variance_teacher_never_changes_the_student():
     assert all(float(jnp.abs(g).max()) == 0.0 for g in jax.tree.leaves(g_actor))
     g_teacher = jax.grad(teacher.reinforce_loss)(state.params, actor, obs, raw, 3.0)
     assert any(float(jnp.abs(g).max()) > 0.0 for g in jax.tree.leaves(g_teacher))
-    assert set(state.params) == {"log_std"}   # the mean is the student's: no parameters of its own
+    # the mean is the student's (plus the residual's offset): no parameters of its own for it
+    assert set(state.params) == {"variance": {"log_std"}, "residual": {"log_std", "offset"}}[design]
 
 
 @pytest.mark.parametrize("student_from", ["pi", "lookahead"])
@@ -221,6 +223,7 @@ def test_the_paired_baseline_is_the_student_itself_from_the_resets_of_d1():
     reward is the look-ahead's gain from the first cycle on; the noise metrics are the spreads over the envs."""
     trainer, cycle = _tiny_cycle(PAIRED_BANDIT)
     state = trainer.init(jax.random.PRNGKey(3))
+    rewards = []
     for i in range(2):
         k_d1 = jax.random.split(state.key, 6)[3]
         _, returns = meta.student_rollout(trainer, state.student.actor, state.normalizer, k_d1)
@@ -230,6 +233,13 @@ def test_the_paired_baseline_is_the_student_itself_from_the_resets_of_d1():
         np.testing.assert_allclose(m["r_hat_pi"], np.mean(returns), rtol=1e-6)
         np.testing.assert_allclose(m["meta_reward"], m["r_hat_lookahead"] - m["r_hat_pi"], rtol=1e-5, atol=1e-4)
         assert np.isfinite(float(m["meta_reward_sd_paired"])) and float(m["meta_reward_sd_unpaired"]) > 0
+        rewards.append(float(m["meta_reward"]))
+    # The bandit in the cycle: its first two arms pulled once each, each valued at its cycle's meta reward (paired:
+    # the first cycle has a baseline), the arm's scale in the cycle's teacher_log_std.
+    bandit = state.explorer.params
+    np.testing.assert_array_equal(bandit["pulls"], [1, 1, 0, 0])
+    np.testing.assert_allclose(bandit["values"], [*rewards, 0, 0], rtol=1e-6)
+    assert float(m["teacher_log_std"]) == pytest.approx(np.log(trainer.config.bandit.scales[1]))
     _, m = _tiny_meta()[1](_tiny_meta()[0].init(jax.random.PRNGKey(3)))  # one eval env, unpaired: no noise measure
     assert np.isnan(float(m["meta_reward_sd_paired"])) and np.isnan(float(m["meta_reward_sd_unpaired"]))
 
@@ -246,11 +256,14 @@ def test_the_residual_teacher_starts_at_the_student_and_stays_within_its_bound()
     far = teacher.distribution({**state.params, "offset": big}, actor, obs)[0]
     assert float(jnp.max(jnp.abs(far - student))) <= teacher.max_offset + 1e-6
     assert float(jnp.max(jnp.abs(far - student))) > 0.9 * teacher.max_offset
-    # REINFORCE moves the offset toward the rewarded actions, no further than the bound.
+    # REINFORCE moves the offset toward the rewarded actions (the student's action is near 0, the target 0.72 away:
+    # the bound 0.3 leaves 0.4 to gain).
     before, after = _reinforce_toy(+1.0, "residual")
     assert after < before - 0.2, (before, after)
     with pytest.raises(ValueError, match="residual.max_offset must be a finite number > 0"):
         validate(tiny_config("meta", steps=300, **{"meta.teacher": "residual", "residual.max_offset": 0}))
+    with pytest.raises(ValueError, match="meta.state_dependent_std=false does not apply"):
+        validate(tiny_config("meta", steps=300, **{"meta.teacher": "residual", "meta.state_dependent_std": False}))
 
 
 def test_the_bandit_tries_every_arm_then_follows_its_values():
@@ -281,7 +294,8 @@ def test_the_bandit_tries_every_arm_then_follows_its_values():
     assert 60 < sum(arms) < 140                              # epsilon 1: uniformly random
     assert float(wild.diagnostics(seen, actor, obs)["teacher_log_std"]) == pytest.approx(np.log(0.1))
     for bad, match in [({"bandit.scales": "-0.1"}, "bandit.scales"), ({"bandit.epsilon": 2}, "bandit.epsilon"),
-                       ({"bandit.step_size": 0}, "bandit.step_size")]:
+                       ({"bandit.step_size": 0}, "bandit.step_size"),
+                       ({"meta.normalize_meta_reward": True}, "meta.normalize_meta_reward=true does not apply")]:
         with pytest.raises(ValueError, match=match):
             validate(tiny_config("meta", steps=300, **{"meta.teacher": "bandit", **bad}))
 
@@ -296,3 +310,13 @@ def test_the_uniform_teacher_draws_uniform_actions_and_learns_nothing():
     assert teacher.update(state, actor, obs, raw, 7.0) is state
     with pytest.raises(ValueError, match="unknown teacher 'nope'; valid teachers: independent, variance"):
         validate(tiny_config("meta", steps=300, **{"meta.teacher": "nope"}))
+
+
+def test_the_meta_reward_spread_paired_and_unpaired():
+    r1, r0 = jnp.array([10.0, 14.0, 30.0]), jnp.array([9.0, 11.0, 29.5])
+    got = meta.meta_reward_spread(r1, r0)
+    np.testing.assert_allclose(got["meta_reward_sd_paired"], np.std([1.0, 3.0, 0.5], ddof=1), rtol=1e-6)
+    np.testing.assert_allclose(got["meta_reward_sd_unpaired"],
+                               np.hypot(np.std(r1, ddof=1), np.std(r0, ddof=1)), rtol=1e-6)
+    one = meta.meta_reward_spread(r1[:1], r0[:1])
+    assert np.isnan(float(one["meta_reward_sd_paired"])) and np.isnan(float(one["meta_reward_sd_unpaired"]))

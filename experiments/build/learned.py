@@ -6,10 +6,12 @@ predicts, measured from the archived per-cycle metrics (``cells.ARCHIVE_CYCLES``
 Per (student, task, method) of ``grid.LEARNED_METHODS`` with a finished archived cell, over each seed's last
 ``LAST`` cycles (all of them if it has fewer), pooled over seeds unless said otherwise:
 
-* the meta reward's noise (H3): the median over cycles of its spread over the eval envs paired
+* the meta reward's noise (H3): the root mean square over cycles of its spread over the eval envs, paired
   (``meta_reward_sd_paired``, the per-env differences of R_hat(pi') and R_hat(pi) from the same resets) and
   unpaired (``meta_reward_sd_unpaired``, what the difference of independent rollouts would spread), and their
-  ratio; the meta reward's mean and standard deviation over cycles, and |mean| / std;
+  ratio (of RMS spreads, i.e. the square root of the ratio of mean variances: each cycle's variances are
+  unbiased, so a pairing that changes nothing gives about 1, where a ratio of median spreads over two envs
+  would lean toward pairing); the meta reward's mean and standard deviation over cycles, and |mean| / std;
 * D0's distance from the student (H1): the RMS teacher-student action distance, mean ± std over seeds of each
   seed's mean;
 * the bandit's choice (H2, ``--teacher=bandit`` with two or more scales): per seed the arm chosen most often and
@@ -53,9 +55,9 @@ def _finite(values) -> np.ndarray:
     return x[np.isfinite(x)]
 
 
-def _median(values) -> float | None:
+def _rms(values) -> float | None:
     x = _finite(values)
-    return float(np.median(x)) if x.size else None
+    return float(np.sqrt(np.mean(np.square(x)))) if x.size else None
 
 
 def cell_diagnostics(cell_dir: str, last: int = LAST) -> dict:
@@ -70,11 +72,11 @@ def cell_diagnostics(cell_dir: str, last: int = LAST) -> dict:
     tail = {s: rows[-last:] for s, rows in read_cycles(cycles_path).items()}
     rows = [r for rs in tail.values() for r in rs]
     reward = _finite(r["meta_reward"] for r in rows)
-    paired = _median(r.get("meta_reward_sd_paired") for r in rows)
-    unpaired = _median(r.get("meta_reward_sd_unpaired") for r in rows)
+    paired = _rms(r.get("meta_reward_sd_paired") for r in rows)
+    unpaired = _rms(r.get("meta_reward_sd_unpaired") for r in rows)
     distance = [float(np.mean(_finite(r["teacher_student_distance"] for r in rs))) for rs in tail.values()]
     out = {"state": "finished", "seeds": len(tail), "cycles_per_seed": min(len(rs) for rs in tail.values()),
-           "sd_paired_median": paired, "sd_unpaired_median": unpaired,
+           "sd_paired_rms": paired, "sd_unpaired_rms": unpaired,
            "sd_ratio": paired / unpaired if paired is not None and unpaired else None,
            "meta_reward_mean": float(np.mean(reward)) if reward.size else None,
            "meta_reward_std": float(np.std(reward, ddof=1)) if reward.size > 1 else None,
@@ -88,9 +90,10 @@ def cell_diagnostics(cell_dir: str, last: int = LAST) -> dict:
         logs = np.log(np.maximum(np.asarray(scales, np.float64), 1e-6))
         favourites = []
         for rs in tail.values():
-            arms = [int(np.argmin(np.abs(logs - r["teacher_log_std"]))) for r in rs]
+            arms = [int(np.argmin(np.abs(logs - r["teacher_log_std"]))) for r in rs
+                    if r.get("teacher_log_std") is not None]
             arm, n = Counter(arms).most_common(1)[0]
-            favourites.append({"scale": float(scales[arm]), "share": n / len(arms)})
+            favourites.append({"scale": float(scales[arm]), "share": n / len(rs)})
         out["bandit"] = {"scales": [float(x) for x in scales], "favourites": favourites,
                          "seeds_over_half": sum(f["share"] > 0.5 for f in favourites),
                          "favourite_counts": {f"{k:g}": v for k, v in
@@ -117,10 +120,11 @@ def markdown(report: dict) -> str:
     last = report["last"]
     lines = ["# Learned exploration: diagnostics of the variants and controls", "",
              f"From each finished cell's archived per-cycle metrics (`cycles.jsonl.gz`), over each seed's last {last} "
-             "cycles, pooled over seeds. Meta reward spread: the median over cycles of the spread (sample std) over "
-             "the cycle's eval envs of the per-env differences R_hat(pi') - R_hat(pi) from the same resets (paired), "
-             "and of what the difference of independent rollouts would spread, sqrt(sd(R_hat(pi'))^2 + "
-             "sd(R_hat(pi))^2) (unpaired). Meta reward mean ± std: over the cycles; SNR = |mean| / std. Distance: "
+             "cycles, pooled over seeds. Meta reward spread: the root mean square over cycles of the spread (sample "
+             "std) over the cycle's eval envs of the per-env differences R_hat(pi') - R_hat(pi) from the same resets "
+             "(paired), and of what the difference of independent rollouts would spread, sqrt(sd(R_hat(pi'))^2 + "
+             "sd(R_hat(pi))^2) (unpaired); ratio: paired over unpaired (about 1 where pairing changes nothing). "
+             "Meta reward mean ± std: over the cycles; SNR = |mean| / std. Distance: "
              "the RMS teacher-student action distance on D0 (actions in [-1, 1]), mean ± std over seeds of each "
              "seed's mean. Bandit: per seed the scale chosen most often and its share of the cycles.", "",
              "| student | task | method | seeds | spread paired | spread unpaired | ratio | meta reward mean ± std | "
@@ -133,7 +137,7 @@ def markdown(report: dict) -> str:
             lines.append(head + f" {c['state']} |" + " |" * 8)
             continue
         b = c.get("bandit")
-        lines.append(head + f" {c['seeds']} | {_f(c['sd_paired_median'], 3)} | {_f(c['sd_unpaired_median'], 3)} | "
+        lines.append(head + f" {c['seeds']} | {_f(c['sd_paired_rms'], 3)} | {_f(c['sd_unpaired_rms'], 3)} | "
                      f"{_f(c['sd_ratio'])} | {_f(c['meta_reward_mean'], 3)} ± {_f(c['meta_reward_std'], 3)} | "
                      f"{_f(c['meta_reward_snr'])} | {_f(c['distance_mean'])} ± {_f(c['distance_std'])} | "
                      + (f"{b['seeds_over_half']} of {c['seeds']} | "

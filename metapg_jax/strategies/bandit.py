@@ -7,8 +7,9 @@ with the highest value, or with probability ``bandit.epsilon`` a uniformly rando
 plus Gaussian noise of that arm's scale (clipped to [-1, 1]). After the look-ahead the arm's value moves toward the
 cycle's meta reward, with step max(1 / pulls, ``bandit.step_size``): the sample mean of its first pulls, then an
 exponential recency-weighted average, since the best scale changes as the student learns (Sutton and Barto,
-2018, section 2.5). A cycle whose meta reward has no baseline yet (the first, with ``meta.baseline=lookahead``)
-updates nothing. The teacher has no gradient and no optimiser: ``meta.lr`` and ``meta.teacher_steps`` do not
+2018, section 2.5). A cycle whose meta reward has no baseline yet (the first, unless ``meta.baseline=paired``)
+updates nothing. The values are in the meta reward's own units: a normalised meta reward
+(``meta.normalize_meta_reward``) is refused, since its scale changes under them. The teacher has no gradient and no optimiser: ``meta.lr`` and ``meta.teacher_steps`` do not
 apply.
 
 Why (results/learned/README.md, hypothesis H2): REINFORCE with one scalar reward per cycle cannot fit a 64-64 MLP
@@ -33,7 +34,7 @@ from metapg_jax import strategy, teacher
 class BanditConfig:
     """The bandit teacher's arms and its choice rule (the ``bandit`` group; ours)."""
 
-    scales: tuple[float, ...] = (0.05, 0.1, 0.2, 0.4)  # Gaussian noise scales (TD3's 0.1 and twice and half it)
+    scales: tuple[float, ...] = (0.05, 0.1, 0.2, 0.4)  # Gaussian noise scales (TD3's 0.1, half, twice, 4 times it)
     epsilon: float = 0.2      # probability of a uniformly random arm once every arm has been tried
     step_size: float = 0.05   # the values' smallest step (recency weighting)
 
@@ -100,6 +101,9 @@ def _validate(config) -> None:
         raise ValueError(f"bandit.epsilon must be in [0, 1], got {b.epsilon!r}")
     if not 0 < b.step_size <= 1:
         raise ValueError(f"bandit.step_size must be in (0, 1], got {b.step_size!r}")
+    if config.meta.teacher == NAME and config.meta.normalize_meta_reward:
+        raise ValueError("the bandit teacher learns from the meta reward itself: meta.normalize_meta_reward=true "
+                         "does not apply to it")
 
 
 NAME = "bandit"

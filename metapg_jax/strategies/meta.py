@@ -25,8 +25,9 @@ Per seed, per cycle (../shared/DESIGN.md steps 1-8; defaults in brackets):
    ``baseline='paired'``.
 
 The teacher is the design ``meta.teacher`` names (``metapg_jax.teacher``: the paper's two, and one file each in
-this package for the others). With two or more eval envs the cycle also measures the meta reward's noise: the
-spread over the envs of the per-env differences of the paired rollouts, and what it would be unpaired.
+this package for the others). With ``baseline='paired'`` and two or more eval envs the cycle also measures the
+meta reward's noise (``meta_reward_spread``): the spread over the envs of the per-env differences of the paired
+rollouts, and what it would be unpaired.
 
 Deviations from the paper's Algorithm 1 (also in docs/algorithm.md):
 * Lines 2-3 (an initial D1 from pi to estimate R_hat(pi) and seed the buffer)
@@ -73,7 +74,7 @@ class MetaConfig:
     """The teacher and Algorithm 1's schedule (../shared/DESIGN.md, paper section 4 and 5.1)."""
 
     # 'independent' (own mean + log-std MLPs), 'variance' (student mean), or another registered design
-    # (metapg_jax.teacher.designs(): residual, bandit, uniform)
+    # (metapg_jax.teacher.designs())
     teacher: str = "independent"
     hidden: tuple[int, ...] = (64, 64)
     layer_norm: bool = True         # the paper uses LayerNorm in its policy networks
@@ -160,10 +161,24 @@ def student_rollout(trainer: Trainer, actor, normalizer, key: jax.Array):
     return flatten_time(transitions), returns
 
 
+# ``fold_in`` data for the teacher's ``begin_cycle`` key, derived from D0's key: an index that D0's rollout, which
+# splits that key into ``explore_steps`` keys, never reaches (``fold_in(k, i)`` may equal ``split(k, n)[i]``), so no
+# key is used twice and the cycle's six keys (and every earlier design's numbers) stay as they were.
+BEGIN_CYCLE_KEY = 2 ** 31 - 1
+
+
 def _sd(x: jax.Array) -> jax.Array:
     """Sample standard deviation (ddof 1) over the last axis; NaN for fewer than two values."""
     n = x.shape[-1]
     return jnp.sqrt(jnp.sum(jnp.square(x - jnp.mean(x, -1, keepdims=True)), -1) / (n - 1)) if n > 1 else jnp.nan
+
+
+def meta_reward_spread(returns_lookahead: jax.Array, returns_pi: jax.Array) -> dict:
+    """The paired meta reward's noise from one cycle's per-env returns of pi' and of pi from the same resets:
+    the spread (sample std) of the per-env differences, and that of a difference of independent rollouts,
+    sqrt(sd(R(pi'))^2 + sd(R(pi))^2) (NaN for one env)."""
+    return {"meta_reward_sd_paired": _sd(returns_lookahead - returns_pi),
+            "meta_reward_sd_unpaired": jnp.sqrt(jnp.square(_sd(returns_lookahead)) + jnp.square(_sd(returns_pi)))}
 
 
 def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
@@ -173,7 +188,7 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     teacher = make_teacher(trainer)
     tstate: TeacherState = state.explorer
     key, k_d0, k_look, k_d1, k_train, k_d2 = jax.random.split(state.key, 6)
-    tstate = teacher.begin_cycle(tstate, jax.random.fold_in(k_d0, 1))
+    tstate = teacher.begin_cycle(tstate, jax.random.fold_in(k_d0, BEGIN_CYCLE_KEY))
     student, normalizer = state.student, state.normalizer
     norm = lambda obs: learner.normalize(normalizer, obs)
 
@@ -201,8 +216,7 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     if m.baseline == "paired":
         d_pi, returns_pi = student_rollout(trainer, student.actor, normalizer, k_d1)
         tstate = tstate.replace(r_hat=jnp.mean(returns_pi))
-        noise = {"meta_reward_sd_paired": _sd(returns_lookahead - returns_pi),
-                 "meta_reward_sd_unpaired": jnp.sqrt(jnp.square(_sd(returns_lookahead)) + jnp.square(_sd(returns_pi)))}
+        noise = meta_reward_spread(returns_lookahead, returns_pi)
     else:
         noise = {"meta_reward_sd_paired": jnp.nan, "meta_reward_sd_unpaired": jnp.nan}
     have_baseline = jnp.isfinite(tstate.r_hat)
@@ -258,7 +272,6 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
 
 # ---------------------------------------------------------------------------------------------- the strategy
 NAME = "meta"
-TEACHERS = ("independent", "variance")  # the paper's designs; every registered one: metapg_jax.teacher.designs()
 STUDENT_FROM = ("pi", "lookahead")
 BASELINES = ("lookahead", "fresh", "paired")
 # The tuned preset's changes to the paper preset's Meta schedule, each from a screen cell at 300k steps

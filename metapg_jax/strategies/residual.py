@@ -67,6 +67,9 @@ def _validate(config) -> None:
     b = config.residual.max_offset
     if not (math.isfinite(b) and b > 0):
         raise ValueError(f"residual.max_offset must be a finite number > 0, got {b!r}")
+    if config.meta.teacher == NAME and not config.meta.state_dependent_std:
+        raise ValueError("the residual teacher's log-std is a network: meta.state_dependent_std=false does not "
+                         "apply to it")
 
 
 NAME = "residual"
