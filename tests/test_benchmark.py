@@ -84,7 +84,7 @@ def test_the_learned_variants_are_entries_only_when_named_and_share_one_cycle_on
             assert (cfg.preset, cfg.steps_per_cycle, cfg.meta.explore_steps, cfg.meta.baseline) == \
                 ("tuned", 750, 250, "paired"), cell.tag
             assert (cfg.run.train_steps, cfg.meta.lookahead_steps, cfg.meta.teacher_steps) == (375, 125, 1), cell.tag
-    assert len(cells) == 6 * 14 and not (tmp_path / "runs").exists()
+    assert len(cells) == 6 * 2 * (1 + len(grid.LEARNED_METHODS)) and not (tmp_path / "runs").exists()
 
 
 def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_rest(tmp_path, capsys):

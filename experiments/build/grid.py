@@ -48,13 +48,16 @@ METHODS = {
     "sac-meta": ["--method=meta", "--teacher=independent"],
     # Learned exploration, second attempt (results/learned/README.md; LEARNED): teacher designs and controls under
     # the tuned schedule (METHOD_PRESETS) with the paired meta reward, all in one cycle (PAIRED_CYCLE).
-    "learned-paired": ["--method=meta", "--teacher=independent", *PAIRED_CYCLE],
+    # The paper's teacher with the paired meta reward, learning at 1e-3 (as the residual teacher, below).
+    "learned-paired": ["--method=meta", "--teacher=independent", "--set", "meta.lr=1e-3", *PAIRED_CYCLE],
     # The residual teacher starts as the student with TD3's Gaussian noise 0.1 (log-std -2.3), and learns at 1e-3:
     # at the paper's 1e-4, 400 one-step cycles move each weight by at most ~0.04 (Adam's steps are ~lr).
     "learned-residual": ["--method=meta", "--teacher=residual", "--set", "meta.init_log_std=-2.3", "--set",
                          "meta.lr=1e-3", *PAIRED_CYCLE],
     "learned-bandit": ["--method=meta", "--teacher=bandit", *PAIRED_CYCLE],
-    # Controls in the same cycle: D0 uniformly random; the student with TD3's Gaussian noise 0.1; the student alone.
+    # Controls in the same cycle: the paper's teacher frozen at its initialisation; D0 uniformly random; the student
+    # with TD3's Gaussian noise 0.1; the student alone.
+    "control-frozen": ["--method=meta", "--teacher=independent", "--set", "meta.lr=0", *PAIRED_CYCLE],
     "control-uniform": ["--method=meta", "--teacher=uniform", *PAIRED_CYCLE],
     "control-fixed": ["--method=meta", "--teacher=bandit", "--set", "bandit.scales=0.1", *PAIRED_CYCLE],
     "control-noiseless": ["--method=meta", "--teacher=bandit", "--set", "bandit.scales=0", *PAIRED_CYCLE],
@@ -69,7 +72,7 @@ METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta
                 "td3-paramnoise": "TD3 (param noise)", "meta-tuned": "Meta (tuned)",
                 "sac-meta": "SAC + Meta (independent)", "learned-paired": "Meta (paired reward)",
                 "learned-residual": "residual teacher", "learned-bandit": "bandit over noise scales",
-                "control-uniform": "control: uniform D0", "control-fixed": "control: D0 with noise 0.1",
+                "control-frozen": "control: frozen teacher", "control-uniform": "control: uniform D0", "control-fixed": "control: D0 with noise 0.1",
                 "control-noiseless": "control: noiseless D0"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
@@ -93,8 +96,8 @@ STRATEGIES = {"td3": ("td3-normal", "td3-ou", "td3-paramnoise", "td3-pink", "td3
               "sac": ("sac-own", "sac-pink", "sac-meta")}
 # Learned exploration, second attempt (results/learned/README.md): each student's teacher designs and their controls,
 # entries of the benchmark only when named (``experiments.benchmark --strategies``), never in its default plan.
-LEARNED_METHODS = ("learned-paired", "learned-residual", "learned-bandit", "control-uniform", "control-fixed",
-                   "control-noiseless")
+LEARNED_METHODS = ("learned-paired", "learned-residual", "learned-bandit", "control-frozen", "control-uniform",
+                   "control-fixed", "control-noiseless")
 LEARNED = {"td3": LEARNED_METHODS, "sac": LEARNED_METHODS}
 # The student of a grid method that only one student's grid or strategies have (the others: DDPG's).
 STUDENT_OF = {m: student for table in (GRIDS, STRATEGIES) for student, methods in table.items() if student != "ddpg"
