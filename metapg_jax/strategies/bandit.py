@@ -9,8 +9,8 @@ cycle's meta reward, with step max(1 / pulls, ``bandit.step_size``): the sample 
 exponential recency-weighted average, since the best scale changes as the student learns (Sutton and Barto,
 2018, section 2.5). A cycle whose meta reward has no baseline yet (the first, unless ``meta.baseline=paired``)
 updates nothing. The values are in the meta reward's own units: a normalised meta reward
-(``meta.normalize_meta_reward``) is refused, since its scale changes under them. The teacher has no gradient and no optimiser: ``meta.lr`` and ``meta.teacher_steps`` do not
-apply.
+(``meta.normalize_meta_reward``) is refused, since its scale changes under them. The teacher has no gradient and
+no optimiser: ``meta.lr`` and ``meta.teacher_steps`` do not apply.
 
 Why (results/learned/README.md, hypothesis H2): REINFORCE with one scalar reward per cycle cannot fit a 64-64 MLP
 (the screen's frozen teacher did as well as the learned one); a choice among a few scales needs only a few

@@ -62,10 +62,10 @@ import jax
 import jax.numpy as jnp
 
 from metapg_jax import strategy
+from metapg_jax import teacher as teacher_lib
 from metapg_jax.config import positive
 from metapg_jax.loop import TrainState, Trainer, flatten_time, train_updates
 from metapg_jax.rollout import completed_episode_mean, rollout
-from metapg_jax import teacher as teacher_lib
 from metapg_jax.teacher import Teacher, TeacherState
 
 
