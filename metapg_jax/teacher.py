@@ -96,8 +96,13 @@ class Teacher:
             params = {"log_std": self._log_std_net().init(k_std, obs)}
         if self.cfg.teacher == "independent":
             params["mean"] = self._mean_net().init(k_mean, obs)
+        return self.new_state(params, self.optimizer.init(params))
+
+    @staticmethod
+    def new_state(params: Params, opt: Any) -> TeacherState:
+        """A design's initial state: its parameters and optimiser state, no R_hat(pi) yet, no reward statistics."""
         zero = jnp.zeros((), jnp.float32)
-        return TeacherState(params=params, opt=self.optimizer.init(params), r_hat=jnp.full((), jnp.nan, jnp.float32),
+        return TeacherState(params=params, opt=opt, r_hat=jnp.full((), jnp.nan, jnp.float32),
                             reward_count=zero, reward_mean=zero, reward_m2=zero)
 
     def begin_cycle(self, state: TeacherState, key: jax.Array) -> TeacherState:

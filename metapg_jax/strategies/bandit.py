@@ -53,9 +53,7 @@ class BanditTeacher(teacher.Teacher):
         k = len(self.bandit.scales)
         params = {"values": jnp.zeros((k,), jnp.float32), "pulls": jnp.zeros((k,), jnp.float32),
                   "arm": jnp.zeros((), jnp.int32)}
-        zero = jnp.zeros((), jnp.float32)
-        return teacher.TeacherState(params=params, opt=(), r_hat=jnp.full((), jnp.nan, jnp.float32),
-                                    reward_count=zero, reward_mean=zero, reward_m2=zero)
+        return self.new_state(params, ())
 
     def choose(self, params, key: jax.Array) -> jax.Array:
         """The first arm not yet pulled; once all have been: the best value, or a random arm with prob. epsilon."""

@@ -48,10 +48,7 @@ class ResidualTeacher(teacher.Teacher):
         k_offset, k_std = jax.random.split(key)
         obs = jnp.zeros((self.student.obs_size,), jnp.float32)
         params = {"offset": self._offset_net().init(k_offset, obs), "log_std": self._log_std_net().init(k_std, obs)}
-        zero = jnp.zeros((), jnp.float32)
-        return teacher.TeacherState(params=params, opt=self.optimizer.init(params),
-                                    r_hat=jnp.full((), jnp.nan, jnp.float32), reward_count=zero, reward_mean=zero,
-                                    reward_m2=zero)
+        return self.new_state(params, self.optimizer.init(params))
 
     def offset(self, params, obs_normalized: jax.Array) -> jax.Array:
         """max_offset * tanh(g(s)): 0 at initialisation, within +-max_offset always."""

@@ -22,9 +22,7 @@ class UniformTeacher(teacher.Teacher):
     """``teacher.Teacher`` with no parameters: a ~ U[-1, 1]^A whatever the state."""
 
     def init(self, key: jax.Array) -> teacher.TeacherState:
-        zero = jnp.zeros((), jnp.float32)
-        return teacher.TeacherState(params={}, opt=(), r_hat=jnp.full((), jnp.nan, jnp.float32),
-                                    reward_count=zero, reward_mean=zero, reward_m2=zero)
+        return self.new_state({}, ())
 
     def sample(self, params, student_actor, obs_normalized, key):
         action = jax.random.uniform(key, (*obs_normalized.shape[:-1], self.action_size), jnp.float32, -1.0, 1.0)
