@@ -24,15 +24,15 @@ Every cell is an ``experiments.reproduce`` cell (``experiments.training.grid_cel
 this process or, with ``--launcher ray``, as a Ray task (reproduce's options), recorded in ``reproduce.json``
 (commit, dirty diff, command, wall and CPU time) and archived as soon as it finishes. Every cell's config is
 validated before the first one runs (bad input: one ``error:`` line, exit 2). The artefacts
-(``experiments.build.benchmark``): per task the final returns and the verdicts against the student's Gaussian
-noise, the aggregate over the tasks, sample-efficiency curves, the cost of each cell, ``README.md`` and
+(``experiments.build.benchmark``): per task the final returns and the verdicts against the student's baseline
+(its Gaussian noise, or the reference named by ``--baseline``, e.g. a best fixed noise chosen in advance), the aggregate over the tasks, sample-efficiency curves, the cost of each cell, ``README.md`` and
 ``manifest.json`` (docs/reproducing.md, "The exploration benchmark").
 
 ``--dry-run`` prints the plan and, unless ``--no-calibrate``, an estimated time per cell: each entry with work left
 runs ``experiments.run`` in a subprocess for a few chunks of ``--calibration-steps`` env steps on one task (its real
 config otherwise: seeds, networks, replay capacity; a cold compile), and each other task with work left runs its
-student's baseline the same way; a cell's estimate is the calibration task's compile time and per-step time of its
-entry, scaled by the task's over the calibration task's for the baseline, times its remaining steps; CPU time is
+student's Gaussian noise the same way; a cell's estimate is the calibration task's compile time and per-step time of
+its entry, scaled by the task's over the calibration task's for the Gaussian noise, times its remaining steps; CPU time is
 that times the entry's CPU utilisation during its calibration.
 
 Exit status: 0 every planned cell finished (``--dry-run``: the plan printed); 1 ``--dry-run`` whose calibration
@@ -56,7 +56,7 @@ import time
 
 from experiments import reproduce
 from experiments.build import benchmark as artefacts
-from experiments.build.grid import LEARNED, STRATEGIES, STUDENT_NAMES, TASKS, task_folder
+from experiments.build.grid import LEARNED, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, TASKS, task_folder
 from experiments.training import grid_cells
 
 DEFAULT_NAME = "exploration"
@@ -79,8 +79,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"comma-separated students (default {','.join(DEFAULT_STUDENTS)})")
     p.add_argument("--strategies", default=None,
                    help=f"comma-separated strategies (grid methods) of those students (default: all; each student's "
-                        f"Gaussian-noise baseline is always planned): {strategies}; and, only when named, the "
+                        f"baseline is always planned): {strategies}; and, only when named, the "
                         f"learned-exploration variants and controls (results/learned/README.md): {learned}")
+    p.add_argument("--baseline", action="append", default=[], metavar="STUDENT=STRATEGY",
+                   help="the student's reference, chosen in advance (e.g. td3=td3-pink, the best fixed noise of an "
+                        "earlier benchmark): always planned; every other strategy of the student gets its verdicts "
+                        "and probability of improvement against it (default: its Gaussian noise, "
+                        + ", ".join(f"{s}={m}" for s, m in STUDENT_BASELINES.items()) + ")")
     p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, help=f"seeds per cell (default {DEFAULT_SEEDS})")
     p.add_argument("--seed", type=int, default=DEFAULT_SEED,
                    help=f"base PRNG seed of every cell (default {DEFAULT_SEED})")
@@ -137,12 +142,26 @@ def parse_tasks(text: str) -> list[str]:
     return tasks
 
 
+def parse_baselines(items: list[str]) -> dict[str, str]:
+    """``--baseline STUDENT=STRATEGY`` (repeatable, or comma-separated) as {student: strategy}."""
+    out = {}
+    for item in (x.strip() for i in items for x in i.split(",") if x.strip()):
+        student, sep, method = item.partition("=")
+        if not sep or not student.strip() or not method.strip():
+            raise ValueError(f"--baseline expects STUDENT=STRATEGY, got {item!r}")
+        if student.strip() in out:
+            raise ValueError(f"--baseline names student {student.strip()!r} twice")
+        out[student.strip()] = method.strip()
+    return out
+
+
 def entries(a: argparse.Namespace) -> list[artefacts.Entry]:
     students = reproduce.parse_list(a.students, tuple(STRATEGIES), "student")
+    baselines = parse_baselines(a.baseline)
     if a.strategies is None:
-        return artefacts.entries_for(students)
+        return artefacts.entries_for(students, baselines=baselines)
     valid = tuple(dict.fromkeys(m for s in students for m in (*STRATEGIES[s], *LEARNED.get(s, ()))))
-    return artefacts.entries_for(students, reproduce.parse_list(a.strategies, valid, "strategy"))
+    return artefacts.entries_for(students, reproduce.parse_list(a.strategies, valid, "strategy"), baselines)
 
 
 def student_args(a: argparse.Namespace, student: str) -> argparse.Namespace:
@@ -269,7 +288,7 @@ def calibrate(a: argparse.Namespace, tasks: list[str], todo: list[tuple[grid_cel
               run=None) -> tuple[dict, dict, list[str]]:
     """({cell key: {"wall_seconds", "cpu_seconds"}} estimated for every cell in ``todo`` (cells with work left and
     their plans), {name: calibration measurement}, failures). The entries are calibrated on the calibration task;
-    every other task with work left is scaled by its student's baseline there over the calibration task
+    every other task with work left is scaled by its student's Gaussian noise there over the calibration task
     (``run``: default ``calibration_run``)."""
     run = run or calibration_run
     cal_task = a.calibration_task or next(t for t in ("hopper", *tasks) if t in tasks)
@@ -278,7 +297,7 @@ def calibrate(a: argparse.Namespace, tasks: list[str], todo: list[tuple[grid_cel
         s = cell.args.student
         wanted[(s, cal_task, cell.method)] = cell.args
         if cell.task != cal_task:
-            base = artefacts.Entry(s, cell.method).baseline
+            base = STUDENT_BASELINES[s]
             wanted[(s, cal_task, base)] = wanted[(s, cell.task, base)] = cell.args
     measured, failures = {}, []
     for i, ((s, t, m), args) in enumerate(wanted.items(), 1):
@@ -294,7 +313,8 @@ def calibrate(a: argparse.Namespace, tasks: list[str], todo: list[tuple[grid_cel
               f"{r['seeds']} seeds, CPU utilisation {r['cpu_utilisation']:.2f}", flush=True)
     estimates = {}
     for cell, plan_ in todo:
-        s, base = cell.args.student, artefacts.Entry(cell.args.student, cell.method).baseline
+        s = cell.args.student
+        base = STUDENT_BASELINES[s]
         own = measured.get((s, cal_task, cell.method))
         scale = measured.get((s, cell.task, base)), measured.get((s, cal_task, base))
         if own is None or (cell.task != cal_task and None in scale):
@@ -368,7 +388,8 @@ def main(argv: list[str] | None = None) -> int:
         print("benchmark: " + (", ".join(f"{n} {k}" for k, n in sorted(counts.items())) or "nothing to do"),
               flush=True)
     options = {"name": a.name, "students": list(dict.fromkeys(e.student for e in chosen)),
-               "strategies": [e.key for e in chosen], "seeds": a.seeds, "seed": a.seed, "steps": a.steps,
+               "strategies": [e.key for e in chosen], "baselines": artefacts.baselines_of(chosen), "seeds": a.seeds,
+               "seed": a.seed, "steps": a.steps,
                "physics": a.physics, "overrides": a.overrides,
                "argv": sys.argv[1:] if argv is None else list(argv)}
     manifest = artefacts.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,

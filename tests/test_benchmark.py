@@ -34,7 +34,11 @@ def test_bad_input_is_one_error_line_before_anything_runs(tmp_path, capsys, monk
                        (["--tasks", "pendulum", "--steps", "1000"],
                         "td3/pendulum/meta-independent: run.total_steps=1000 is not a multiple of the 300"),
                        (["--tasks", "gym:InvertedPendulum-v5", "--physics", "mjx", "--students", "sac"],
-                        "runs on MuJoCo's C engine only")):
+                        "runs on MuJoCo's C engine only"),
+                       (["--baseline", "td3"], "--baseline expects STUDENT=STRATEGY, got 'td3'"),
+                       (["--baseline", "td3=sac-pink"], "baseline td3=sac-pink: 'sac-pink' is not a strategy of td3"),
+                       (["--students", "td3", "--baseline", "sac=sac-own"], "'sac' is not one of the planned students"),
+                       (["--baseline", "td3=td3-pink,td3=td3-ou"], "names student 'td3' twice")):
         assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 2, argv
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("error: ") and said in err[0], (argv, err)
@@ -244,13 +248,13 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
     assert rep["best_fixed_noise"] == {s: {"entry": f"{s}/{m}", "IQM": pytest.approx(stats.iqm(scores(m)))}
                                        for s, m in (("td3", "td3-pink"), ("sac", "sac-pink"))}
     pairs = {(p["x"], p["y"], p["reference"]): p for p in rep["improvement"]}
-    assert set(pairs) == {("td3/td3-pink", "td3/td3-normal", "Gaussian noise"),
-                          ("td3/meta-independent", "td3/td3-normal", "Gaussian noise"),
-                          ("sac/sac-pink", "sac/sac-own", "Gaussian noise"),
+    assert set(pairs) == {("td3/td3-pink", "td3/td3-normal", "baseline"),
+                          ("td3/meta-independent", "td3/td3-normal", "baseline"),
+                          ("sac/sac-pink", "sac/sac-own", "baseline"),
                           ("td3/td3-normal", "td3/td3-pink", "best fixed noise"),
                           ("td3/meta-independent", "td3/td3-pink", "best fixed noise"),
                           ("sac/sac-own", "sac/sac-pink", "best fixed noise")}
-    assert pairs[("td3/td3-pink", "td3/td3-normal", "Gaussian noise")]["point"] == 1.0
+    assert pairs[("td3/td3-pink", "td3/td3-normal", "baseline")]["point"] == 1.0
     assert "same seeds" in rep["best_fixed_noise_rule"] and "| Y is |" in (results / "aggregate.md").read_text()
 
     # Sample efficiency: the IQM of the normalised evaluation returns at each evaluation point.
@@ -271,3 +275,24 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
     mean, std = stats.mean_std(final("hopper", "td3-pink"))
     assert "1 not run (sac/reacher/sac-pink)" in readme and "| SAC | SAC (pink noise) |" in readme
     assert f"| TD3 | TD3 (pink noise) | {stats.fmt(mean)} ± {stats.fmt(std)} (better) |" in readme
+
+    # A baseline chosen in advance (TD3's pink noise): it is planned, Gaussian noise is not unless named, and the
+    # verdicts and P(improvement) of TD3's other strategies are against it.
+    chosen = artefacts.entries_for(["td3"], ["meta-independent"], {"td3": "td3-pink"})
+    assert [(e.key, e.baseline) for e in chosen] == [("td3/td3-pink", "td3-pink"),
+                                                     ("td3/meta-independent", "td3-pink")]
+    judged = tmp_path / "judged"
+    artefacts.build(str(runs), str(judged), chosen, ["hopper", "reacher"], anchors_path=str(anchors),
+                    plan={"name": "j", "students": ["td3"], "seeds": 4, "seed": 1000, "steps": 3000})
+    rows = {r["method"]: r for r in json.loads((judged / "tasks" / "hopper.json").read_text())["rows"]}
+    assert rows["td3-pink"]["verdict"] is None and rows["meta-independent"]["baseline"] == "td3-pink"
+    raw = [stats.welch_test(final(t, "meta-independent"), final(t, "td3-pink"))[1] for t in ("hopper", "reacher")]
+    assert rows["meta-independent"]["verdict"]["p_holm"] == pytest.approx(stats.holm(raw)[0])
+    assert rows["meta-independent"]["verdict"]["verdict"] == "worse"
+    rep = json.loads((judged / "aggregate.json").read_text())
+    assert {(p["x"], p["y"], p["reference"]) for p in rep["improvement"]} == {
+        ("td3/meta-independent", "td3/td3-pink", "baseline"), ("td3/meta-independent", "td3/td3-pink",
+                                                                "best fixed noise")}
+    assert "against its student's baseline (TD3: TD3 (pink noise))" in (judged / "tasks" / "hopper.md").read_text()
+    assert "Baselines: TD3 (pink noise)." in (judged / "README.md").read_text()
+    assert json.loads((judged / "manifest.json").read_text())["benchmark"]["baselines"] == {"td3": "td3-pink"}

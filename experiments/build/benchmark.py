@@ -1,5 +1,6 @@
 """The exploration benchmark's artefacts (``experiments.benchmark``), from stored cells: per task every (student,
-strategy) cell's final return with its corrected verdict against the student's Gaussian-noise baseline, the
+strategy) cell's final return with its corrected verdict against the student's baseline (its Gaussian noise
+unless a reference chosen in advance is named), the
 aggregate over the tasks (Agarwal et al., 2021), sample-efficiency curves, the cost of every cell, ``README.md``
 and ``manifest.json``.
 
@@ -51,6 +52,11 @@ class Entry:
 
     student: str
     method: str
+    baseline: str = ""  # the student's reference, every other entry of the student is judged against it
+
+    def __post_init__(self):
+        if not self.baseline:  # default: the student's Gaussian noise (``STUDENT_BASELINES``)
+            object.__setattr__(self, "baseline", STUDENT_BASELINES[self.student])
 
     @property
     def key(self) -> str:
@@ -64,26 +70,37 @@ class Entry:
         return name if name.startswith(student) else f"{student} + {name}"
 
     @property
-    def baseline(self) -> str:
-        """The student's Gaussian-noise baseline, every other entry's reference."""
-        return STUDENT_BASELINES[self.student]
-
-    @property
     def noise(self) -> bool:
         """Whether the strategy explores with fixed noise (not a learned teacher)."""
         return bool(noise_methods([self.method]))
 
 
-def entries_for(students: Sequence[str], strategies: Sequence[str] | None = None) -> list[Entry]:
+def entries_for(students: Sequence[str], strategies: Sequence[str] | None = None,
+                baselines: dict[str, str] | None = None) -> list[Entry]:
     """The entries of ``students`` (``STRATEGIES`` order, then ``LEARNED``'s), restricted to ``strategies`` (grid
-    methods) when given, else ``STRATEGIES``' only; each student's Gaussian-noise baseline is always one of them
-    (every other entry is judged against it)."""
+    methods) when given, else ``STRATEGIES``' only. Each student's baseline is always one of them (every other
+    entry is judged against it): ``baselines[student]`` where given (a reference chosen in advance, e.g. the best
+    fixed noise of an earlier benchmark), else its Gaussian noise. ``ValueError`` for a baseline that is not one of
+    the student's strategies."""
+    baselines = dict(baselines or {})
+    for s, m in baselines.items():
+        if s not in students:
+            raise ValueError(f"baseline {s}={m}: {s!r} is not one of the planned students ({', '.join(students)})")
+        if m not in (*STRATEGIES[s], *LEARNED.get(s, ())):
+            raise ValueError(f"baseline {s}={m}: {m!r} is not a strategy of {s}; valid: "
+                             + ", ".join((*STRATEGIES[s], *LEARNED.get(s, ()))))
     out = []
     for s in students:
-        chosen = [m for m in STRATEGIES[s] if strategies is None or m in strategies or m == STUDENT_BASELINES[s]]
-        chosen += [m for m in LEARNED.get(s, ()) if strategies is not None and m in strategies]
-        out += [Entry(s, m) for m in chosen]
+        base = baselines.get(s, STUDENT_BASELINES[s])
+        chosen = [m for m in STRATEGIES[s] if strategies is None or m in strategies or m == base]
+        chosen += [m for m in LEARNED.get(s, ()) if strategies is not None and m in strategies or m == base]
+        out += [Entry(s, m, base) for m in chosen]
     return out
+
+
+def baselines_of(entries: Sequence[Entry]) -> dict[str, str]:
+    """{student: its baseline method} of ``entries``."""
+    return {e.student: e.baseline for e in entries}
 
 
 def student_dirs(runs_dir: str, results_dir: str, student: str) -> tuple[str, str]:
@@ -116,17 +133,17 @@ def student_rows(results: dict, entries: Sequence[Entry], tasks: Sequence[str]) 
     for student in dict.fromkeys(e.student for e in entries):
         methods = [e.method for e in entries if e.student == student]
         mine = {(t, m): r for (s, t, m), r in results.items() if s == student}
-        out[student] = tables.table2_rows(mine, tasks, methods, STUDENT_BASELINES[student])
+        out[student] = tables.table2_rows(mine, tasks, methods, baselines_of(entries)[student])
     return out
 
 
 def verdicts(rows: dict[str, list[dict]], entries: Sequence[Entry], anchors: dict | None) -> dict[str, dict]:
     """{student: its family of corrected verdicts} (``tables.verdict_family``): every other strategy of the student
-    against its Gaussian-noise baseline on every task where both finished at the same budget, Holm-corrected
-    within the family; equivalence within ``stats.EQUIVALENCE_MARGIN`` of the task's anchors' range."""
+    against its baseline on every task where both finished at the same budget, Holm-corrected within the family;
+    equivalence within ``stats.EQUIVALENCE_MARGIN`` of the task's anchors' range."""
     out = {}
     for student, student_rows_ in rows.items():
-        base = STUDENT_BASELINES[student]
+        base = baselines_of(entries)[student]
         others = [e.method for e in entries if e.student == student and e.method != base]
         out[student] = tables.verdict_family(student_rows_, base, others, anchors)
     return out
@@ -178,10 +195,11 @@ def write_task_tables(task: str, table: list[dict], families: dict[str, dict], o
     base = os.path.join(folder, task_folder(task))
     paths = [base + ".md", base + ".json", base + "_per_seed.csv"]
     sizes = {s: len(f["comparisons"]) for s, f in families.items()}
+    bases = {r["student"]: r["baseline"] for r in table}
     md = [f"# {task_name(task)}: final return of every student and strategy (exploration benchmark)", "",
           "Each row one cell (a student exploring with a strategy), its seeds' final returns; the verdict of each "
-          "strategy against its student's Gaussian-noise baseline (" + ", ".join(
-              f"{STUDENT_NAMES.get(s, s)}: {METHOD_NAMES.get(STUDENT_BASELINES[s], STUDENT_BASELINES[s])}"
+          "strategy against its student's baseline (" + ", ".join(
+              f"{STUDENT_NAMES.get(s, s)}: {METHOD_NAMES.get(bases[s], bases[s])}"
               for s in families) + "), fixed in advance. \"not run\": no finished cell is stored (nothing is "
           "estimated). Raw per-seed numbers: `" + os.path.basename(paths[2]) + "`.", "",
           f"- {stats.FINAL_DEFINITION}.",
@@ -206,7 +224,7 @@ def write_task_tables(task: str, table: list[dict], families: dict[str, dict], o
     with open(paths[1], "w") as f:
         json.dump({"task": task, "final_definition": stats.FINAL_DEFINITION,
                    "verdicts_definition": stats.VERDICT_DEFINITION,
-                   "baselines": {s: STUDENT_BASELINES[s] for s in families},
+                   "baselines": {s: bases[s] for s in families},
                    "family_sizes": sizes, "rows": table}, f, indent=2, default=tables.json_default)
     with open(paths[2], "w", newline="") as f:
         w = csv.writer(f)
@@ -238,11 +256,11 @@ def best_fixed_noise(rep: dict, entries: Sequence[Entry]) -> dict[str, str]:
 
 def improvement(scores: dict, entries: Sequence[Entry], present: Sequence[str], best: dict[str, str]) -> list[dict]:
     """The probability of improvement (``stats.probability_of_improvement``) of each entry of the aggregate over
-    its student's Gaussian-noise baseline, then over its student's best fixed noise (``best_fixed_noise``)."""
+    its student's baseline (reference "baseline"), then over its student's best fixed noise (``best_fixed_noise``)."""
     out = []
-    for reference in ("Gaussian noise", "best fixed noise"):
+    for reference in ("baseline", "best fixed noise"):
         for e in entries:
-            y = Entry(e.student, e.baseline).key if reference == "Gaussian noise" else best.get(e.student)
+            y = Entry(e.student, e.baseline).key if reference == "baseline" else best.get(e.student)
             if e.key not in present or y not in present or y == e.key:
                 continue
             point, lo, hi = stats.probability_of_improvement(scores[e.key], scores[y])
@@ -468,7 +486,7 @@ FILES = {
     "manifest.json": "provenance: this build's commit and machine, the plan, and per cell its commits, dirty flag, "
                      "diffs, config, seeds, budget, machine, wall and CPU time",
     "aggregate.md": "aggregate over the tasks: IQM, mean and optimality gap of the normalised final returns per "
-                    "student and strategy, and the probability of improvement over the student's Gaussian noise and "
+                    "student and strategy, and the probability of improvement over the student's baseline and "
                     "over its best fixed noise, with 95% stratified bootstrap intervals",
     "aggregate.json": "the same, machine-readable, with the anchors, the tasks left out and the best fixed noises",
     "aggregate_scores.png": "IQM, mean and optimality gap per student and strategy with their intervals",
@@ -490,6 +508,11 @@ def _final_matrix(tables_: dict[str, list[dict]], entries: Sequence[Entry], task
         lines.append(f"| {STUDENT_NAMES.get(e.student, e.student)} | {e.label} | "
                      + " | ".join(cell(tables_[t][i]) for t in tasks) + " |")
     return lines
+
+
+def _baselines_text(entries: Sequence[Entry]) -> str:
+    """Each student's baseline, e.g. 'TD3 (normal noise), SAC (own policy)'."""
+    return ", ".join(Entry(s, m).label for s, m in baselines_of(entries).items())
 
 
 def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[Entry], tasks: Sequence[str],
@@ -514,7 +537,7 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
     for f in manifest["files"]:
         if f.startswith("tasks/") and f.endswith(".md"):
             lines.append(f"| `{f}` | per task: every cell's final return (mean ± std, 95% CI, seeds, budget) and its "
-                         f"corrected verdict against the student's Gaussian noise |")
+                         f"corrected verdict against the student's baseline |")
         elif f.startswith("tasks/") and f.endswith("_per_seed.csv"):
             lines.append(f"| `{f}` | the raw per-seed final returns of that task's finished cells |")
         elif f.startswith("tasks/"):
@@ -525,7 +548,8 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
                  "`reproduce.json` (commands, commits, wall and CPU time), diffs of uncommitted changes |")
     lines += ["", "## Final return per task", "",
               f"Mean ± std of the seeds' final returns ({stats.FINAL_DEFINITION}); in brackets the verdict against "
-              "the student's Gaussian noise (Holm-corrected within the student's family; details per task in "
+              "the student's baseline (" + _baselines_text(entries) + "; Holm-corrected within the student's family; "
+              "details per task in "
               "`tasks/`).",
               ""] + _final_matrix(tables_, entries, tasks)
     lines += ["", "## Aggregate over tasks", ""]
@@ -544,13 +568,14 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
                 lines.append(f"| {STUDENT_NAMES.get(e.student, e.student)} | {e.label} | {interval(m['IQM'])} | "
                              f"{interval(m['mean'])} | {interval(m['optimality gap'])} |")
         lines += ["", f"Probability of improvement P(X > Y): the chance that a seed of X ends above a seed of Y on a "
-                  f"task drawn from these tasks. {BEST_NOISE_RULE[0].upper()}{BEST_NOISE_RULE[1:]}.", "",
-                  "| X | over its Gaussian noise | over its best fixed noise (which) |", "|---|---|---|"]
+                  f"task drawn from these tasks. Baselines: {_baselines_text(entries)}. "
+                  f"{BEST_NOISE_RULE[0].upper()}{BEST_NOISE_RULE[1:]}.", "",
+                  "| X | over its baseline | over its best fixed noise (which) |", "|---|---|---|"]
         by = {(p["x"], p["reference"]): p for p in rep["improvement"]}
         for e in entries:
             if e.key not in rep["methods"]:
                 continue
-            g, b = by.get((e.key, "Gaussian noise")), by.get((e.key, "best fixed noise"))
+            g, b = by.get((e.key, "baseline")), by.get((e.key, "best fixed noise"))
             best = rep["best_fixed_noise"].get(e.student, {}).get("entry")
             lines.append(f"| {e.label} | {interval(g) if g else '–'} | "
                          + (f"{interval(b)} ({labels.get(best, best)})" if b else
@@ -613,7 +638,7 @@ def build(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Sequ
     manifest = {
         "build": build_, "benchmark": {**(plan or {}), "tasks": list(tasks),
                                        "entries": [dataclasses.asdict(e) for e in entries],
-                                       "baselines": {s: STUDENT_BASELINES[s] for s in rows}},
+                                       "baselines": baselines_of(entries)},
         "files": [os.path.relpath(p, results_dir) for p in files] + ["README.md", "manifest.json"],
         "cells": [{**cells.cell_provenance(r), "student": s} for (s, _, _), r in results.items()],
         "not_run": [[e.student, t, e.method] for t in tasks for e in entries
