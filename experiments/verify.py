@@ -14,7 +14,8 @@ gives the same first intervals: ``docs/long-runs.md``), in a ``git worktree`` of
 metrics rows are compared with the stored rows of the same chunks and seeds, field by field (timings
 left out). The result goes to ``<cell>/verified.json`` (the command, the commit, both numbers per seed,
 the largest relative difference and the verdict: ``reproduced`` when every compared value agrees within
-``--rtol``, else ``differs``; ``same_cpu``: whether the cell was recorded on this CPU), which the results
+``--rtol``, else ``differs``; ``same_cpu`` and ``same_packages``: whether the cell was recorded on this CPU and
+with these versions of ``provenance.PACKAGES``; None where its record predates them), which the results
 manifest and footers report. Bit-for-bit equality needs the CPU the cell ran on (XLA compiles for the CPU
 it runs on; ``metapg_jax.host.provenance.cpu_fingerprint``, recorded with every run): on another CPU a
 chaotic task's re-run differs after round-off grows, and ``differs`` says nothing about the code. A budget
@@ -113,15 +114,28 @@ def compare(stored: list[dict], rerun: list[dict], chunks: int, rtol: float) -> 
             "rows": rows}
 
 
+def _recorded_machine(cell: str) -> dict:
+    with open(os.path.join(cell, "config.json")) as f:
+        return json.load(f).get("machine", {})
+
+
 def _same_cpu(cell: str) -> bool | None:
     """Whether the cell's first run recorded this machine's CPU fingerprint (``provenance.cpu_fingerprint``);
     None for a cell recorded before fingerprints were. XLA compiles for the CPU it runs on: on another CPU a
     re-run of the same commit may differ by round-off, which a chaotic task grows into other numbers."""
     from metapg_jax.host import provenance
 
-    with open(os.path.join(cell, "config.json")) as f:
-        cpu = json.load(f).get("machine", {}).get("cpu")
+    cpu = _recorded_machine(cell).get("cpu")
     return None if cpu is None else cpu == provenance.cpu_fingerprint()
+
+
+def _same_packages(cell: str) -> bool | None:
+    """Whether the cell's first run recorded this machine's versions of ``provenance.PACKAGES`` (None for a cell
+    recorded before they were): another jaxlib or MuJoCo build may round differently, as another CPU may."""
+    from metapg_jax.host import provenance
+
+    packages = _recorded_machine(cell).get("packages")
+    return None if packages is None else packages == provenance.package_versions()
 
 
 def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = None, at: str | None = None) -> dict:
@@ -155,7 +169,7 @@ def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = No
     record = {"commit": commit, **({} if commit == recorded else {"recorded_commit": recorded}),
               "command": ["python", "-m", "experiments.run", *argv[:-2], "--out", "<tmp>"],
               "chunks": chunks, "env_steps": chunks * eval_every, "rtol": rtol, **result,
-              "same_cpu": _same_cpu(cell),
+              "same_cpu": _same_cpu(cell), "same_packages": _same_packages(cell),
               "checked": {"date": datetime.date.today().isoformat(), **provenance.record()}}
     runfiles.write_json_atomic(os.path.join(cell, RESULT), record)
     return record
@@ -188,9 +202,12 @@ def main(argv: list[str] | None = None) -> int:
             status = 1
             continue
         note = ""
-        if r["verdict"] != "reproduced" and not r["same_cpu"]:
-            note = ("; the cell was recorded on another CPU" if r["same_cpu"] is False else
-                    "; the cell's CPU was not recorded") + " (bit-for-bit equality needs the same CPU)"
+        if r["verdict"] != "reproduced" and not (r["same_cpu"] and r["same_packages"]):
+            unknown = [w for w, k in (("CPU", "same_cpu"), ("package versions", "same_packages")) if r[k] is None]
+            other = [w for w, k in (("CPU", "same_cpu"), ("package versions", "same_packages")) if r[k] is False]
+            note = ("; recorded with another " + " and other ".join(other) if other else "") + (
+                f"; the cell's {' and '.join(unknown)} not recorded" if unknown else "") + (
+                " (bit-for-bit equality needs the same CPU and package builds)")
         print(f"{cell}: {r['verdict']} at {r['commit'][:7]}"
               + (f" (recorded: {r['recorded_commit'][:7]})" if "recorded_commit" in r else "")
               + f" over {r['env_steps']:,} env steps (largest relative difference {r['max_relative_difference']})"

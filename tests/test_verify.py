@@ -36,6 +36,7 @@ def test_a_cell_rerun_at_its_commit_is_reproduced_and_a_changed_one_differs(tmp_
     record = json.loads((cell / "verified.json").read_text())
     assert record["verdict"] == "reproduced" and record["commit"] == head and record["env_steps"] == 600
     assert record["same_cpu"] is True  # the cell's config.json holds this machine's CPU fingerprint
+    assert record["same_packages"] is True  # ... and these package versions
     assert [(r["seed"], r["chunk"]) for r in record["rows"]] == [(0, 0), (0, 1), (1, 0), (1, 1)]
     assert "--steps=600" in record["command"] and "runs/somewhere" not in record["command"]
     r = cells.load_run(str(cell), "pendulum", "meta-independent")

@@ -38,8 +38,29 @@ def cpu_fingerprint() -> str:
     return hashlib.sha256(model.encode()).hexdigest()[:16] if model else ""
 
 
+# The installed distributions whose versions can change a run's numbers (XLA's compiler, MuJoCo's C engine,
+# the numerics libraries) or its meaning (the environments' definitions).
+PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "chex", "numpy", "gymnasium",
+            "orbax-checkpoint")
+
+
+def package_versions() -> dict[str, str | None]:
+    """{distribution: installed version, None where it is not installed} for ``PACKAGES``."""
+    from importlib import metadata
+
+    out = {}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = None
+    return out
+
+
 def record() -> dict:
-    """The commit (and whether the tree had changes) and the machine, recorded with every run.
+    """The commit (and whether the tree had changes) and the machine (CPU fingerprint, Python, the versions of
+    ``PACKAGES``), recorded with every run: float32 results are equal bit for bit only on the same CPU with the
+    same package builds.
 
     ``dirty``: tracked files outside ``results/`` differ from the commit. ``results/`` holds outputs (reports
     that a grid or screen rewrites between its cells), not code, so a rewritten report does not mark the
@@ -47,7 +68,7 @@ def record() -> dict:
     import platform
 
     machine = {"platform": platform.platform(), "processor": platform.machine(), "cpu": cpu_fingerprint(),
-               "cpu_count": os.cpu_count(), "python": platform.python_version()}
+               "cpu_count": os.cpu_count(), "python": platform.python_version(), "packages": package_versions()}
     try:
         import jax
 
