@@ -25,15 +25,16 @@ this process or, with ``--launcher ray``, as a Ray task (reproduce's options), r
 (commit, dirty diff, command, wall and CPU time) and archived as soon as it finishes. Every cell's config is
 validated before the first one runs (bad input: one ``error:`` line, exit 2). The artefacts
 (``experiments.build.benchmark``): per task the final returns and the verdicts against the student's baseline
-(its Gaussian noise, or the reference named by ``--baseline``, e.g. a best fixed noise chosen in advance), the aggregate over the tasks, sample-efficiency curves, the cost of each cell, ``README.md`` and
-``manifest.json`` (docs/reproducing.md, "The exploration benchmark").
+(its Gaussian noise, or the reference named by ``--baseline``, e.g. a best fixed noise chosen in advance), the
+aggregate over the tasks, sample-efficiency curves, the cost of each cell, ``README.md`` and ``manifest.json``
+(docs/reproducing.md, "The exploration benchmark").
 
 ``--dry-run`` prints the plan and, unless ``--no-calibrate``, an estimated time per cell: each entry with work left
 runs ``experiments.run`` in a subprocess for a few chunks of ``--calibration-steps`` env steps on one task (its real
 config otherwise: seeds, networks, replay capacity; a cold compile), and each other task with work left runs its
 student's Gaussian noise the same way; a cell's estimate is the calibration task's compile time and per-step time of
-its entry, scaled by the task's over the calibration task's for the Gaussian noise, times its remaining steps; CPU time is
-that times the entry's CPU utilisation during its calibration.
+its entry, scaled by the task's over the calibration task's for the Gaussian noise, times its remaining steps; CPU
+time is that times the entry's CPU utilisation during its calibration.
 
 Exit status: 0 every planned cell finished (``--dry-run``: the plan printed); 1 ``--dry-run`` whose calibration
 runs all failed; 2 bad input; 3 some cell stopped on non-finite parameters (the others

@@ -135,7 +135,7 @@ def _same_packages(cell: str) -> bool | None:
     from metapg_jax.host import provenance
 
     packages = _recorded_machine(cell).get("packages")
-    return None if packages is None else packages == provenance.package_versions()
+    return None if packages is None else packages == provenance.package_versions(tuple(packages))
 
 
 def verify(cell: str, chunks: int = 1, rtol: float = 1e-5, keep: str | None = None, at: str | None = None) -> dict:

@@ -44,12 +44,12 @@ PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "c
             "orbax-checkpoint")
 
 
-def package_versions() -> dict[str, str | None]:
-    """{distribution: installed version, None where it is not installed} for ``PACKAGES``."""
+def package_versions(names: tuple[str, ...] = PACKAGES) -> dict[str, str | None]:
+    """{distribution: installed version, None where it is not installed} for ``names``."""
     from importlib import metadata
 
     out = {}
-    for name in PACKAGES:
+    for name in names:
         try:
             out[name] = metadata.version(name)
         except metadata.PackageNotFoundError:
