@@ -7,6 +7,7 @@ import math
 import os
 
 import numpy as np
+import pytest
 
 from experiments.build import cells, learned
 from experiments.build.grid import LEARNED_METHODS
@@ -22,10 +23,11 @@ def _cycles(seeds):
 def _run(path, config, rows):
     os.makedirs(path)
     with open(os.path.join(path, "config.json"), "w") as f:
-        json.dump({"config": config}, f)
-    for name in ("summary.json", "metrics.jsonl"):
-        with open(os.path.join(path, name), "w") as f:
-            f.write("{}\n")
+        json.dump({"config": {"run": {"total_steps": 300}, **config}, "run_args": {}}, f)
+    with open(os.path.join(path, "summary.json"), "w") as f:
+        f.write("{}\n")
+    with open(os.path.join(path, "metrics.jsonl"), "w") as f:
+        f.write(json.dumps({"seed": 0, "chunk": 0, "env_steps": 300, "eval_return": 1.0}) + "\n")
     with open(os.path.join(path, "cycles.jsonl"), "w") as f:
         f.writelines(json.dumps(r) + "\n" for r in rows)
 
@@ -67,9 +69,9 @@ def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
     md = (out / "diagnostics.md").read_text()
     row = next(line for line in md.splitlines() if "| bandit over noise scales |" in line)
     assert "| 3 | 3.606 | 4.000 | 0.90 |" in row and "| 2 of 3 |" in row
-    assert md.count("| not run |") == len(LEARNED_METHODS) - 1
     rows = [line for line in md.splitlines() if line.startswith("| TD3 ")]
     assert len(rows) == len(LEARNED_METHODS) and all(line.count("|") == 13 for line in rows)
+    assert sum("| not run |" in line for line in rows) == len(LEARNED_METHODS) - 1
     assert json.loads((out / "diagnostics.json").read_text())["cells"][2]["bandit"]["seeds_over_half"] == 2
 
 
@@ -80,3 +82,59 @@ def test_only_the_learned_methods_keep_their_cycles(tmp_path):
     assert not (tmp_path / "a" / cells.ARCHIVE_CYCLES).exists()
     assert learned.cell_diagnostics(str(tmp_path / "a")) == {"state": "no per-cycle metrics archived"}
     assert learned.cell_diagnostics(str(tmp_path / "none")) == {"state": "not run"}
+
+
+def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
+    """The predictions of results/learned/README.md checked on a fabricated Hopper screen: the comparisons of final
+    returns in one Holm family (met / refuted / inconclusive / not run), the diagnostics' thresholds, and the
+    variants against every control in a family of their own."""
+    from experiments.build import stats
+    from tests.helpers import fabricate_run
+
+    rng = np.random.default_rng(3)
+    steps = np.arange(1, 11) * 300
+    means = {"meta-tuned": 500.0, "learned-residual": 501.0, "control-fixed": 300.0, "learned-bandit": 250.0,
+             "learned-paired": 400.0, "control-uniform": 100.0}        # control-frozen, control-noiseless: not run
+    finals = {}
+    cells_dir = tmp_path / "res" / "td3" / "cells" / "hopper"
+    for m, mean in means.items():
+        values = rng.normal(mean, 5.0, (8, 10))
+        fabricate_run(str(cells_dir / m), "hopper", m, values, steps)
+        finals[m] = stats.final_returns(values)
+    # Per-cycle metrics for two variants: the residual teacher's D0 at distance 0.2 (within 0.1-0.3), the paired
+    # reward's spread ratio 0.8 (above 0.5).
+    for m, row in (("learned-residual", (0.1, 1.0, 1.0, 2.0, 0.2)), ("learned-paired", (0.1, 1.0, 0.8, 1.0, 0.9))):
+        with gzip.open(cells_dir / m / cells.ARCHIVE_CYCLES, "wt") as f:
+            f.writelines(json.dumps(r) + "\n" for r in _cycles({0: [row] * 5, 1: [row] * 5}))
+    anchors = tmp_path / "anchors.json"
+    anchors.write_text(json.dumps({"tasks": {"hopper": {"random_return": 0.0, "reference_return": 1000.0}}}))
+    assert learned.main(["--results-dir", str(tmp_path / "res"), "--tasks", "hopper", "--anchors", str(anchors)]) == 0
+    pred = json.loads((tmp_path / "res" / "diagnostics.json").read_text())["predictions"]["td3"]
+
+    got = {(r["a"], r["b"]): r for r in pred["comparisons"]}
+    assert [r["hypothesis"] for r in pred["comparisons"]] == ["H1", "H1", "H2", "H3"]
+    # One family over the three comparisons made (H3's reference was not run), Holm-corrected.
+    made = [("learned-residual", "meta-tuned"), ("learned-residual", "control-fixed"),
+            ("learned-bandit", "control-fixed")]
+    holm = stats.holm([stats.welch_test(finals[a], finals[b])[1] for a, b in made])
+    assert [got[k]["p_holm"] for k in made] == pytest.approx(list(holm))
+    assert got[made[0]]["verdict"] == "equivalent" and got[made[0]]["outcome"] == "met"  # within ±50
+    assert got[made[1]]["verdict"] == "better" and got[made[1]]["outcome"] == "met"
+    assert got[made[2]]["verdict"] == "worse" and got[made[2]]["outcome"] == "refuted"    # 'beats' refuted
+    assert got[("learned-paired", "control-frozen")]["outcome"] == "not run: control-frozen"
+    assert learned.outcome("beats", "inconclusive") == "inconclusive"
+    assert learned.outcome("beats", "equivalent") == "refuted" and learned.outcome("not worse", "better") == "met"
+
+    diag = {r["hypothesis"]: r for r in pred["diagnostics"]}
+    assert diag["H1"]["outcome"] == "met" and diag["H1"]["value"] == pytest.approx(0.2)
+    assert diag["H3"]["outcome"] == "not met" and diag["H3"]["value"] == pytest.approx(0.8)
+    assert diag["H2"]["outcome"] == "no per-cycle metrics archived" and diag["H2"]["value"] is None
+
+    # H4: 3 variants x 4 controls; compared where both finished (the 3 variants against fixed noise and uniform D0).
+    done = [r for r in pred["controls"] if r["state"] == "compared"]
+    assert len(pred["controls"]) == 12 and len(done) == 6
+    assert stats.holm([stats.welch_test(finals[r["a"]], finals[r["b"]])[1] for r in done]) == \
+        pytest.approx([r["p_holm"] for r in done])
+    md = (tmp_path / "res" / "diagnostics.md").read_text()
+    assert "| H2 | bandit over noise scales beats control: D0 with noise 0.1 | Hopper |" in md
+    assert "| refuted |" in md and "| not run: control-frozen |" in md and "(H4): a family of its own" in md

@@ -17,6 +17,18 @@ Per (student, task, method) of ``grid.LEARNED_METHODS`` with a finished archived
 * the bandit's choice (H2, ``--teacher=bandit`` with two or more scales): per seed the arm chosen most often and
   its share of the cycles; the seeds whose favourite has more than half; the favourite scales' counts.
 
+Then each hypothesis' predictions, fixed before the screen ran (results/learned/README.md), checked per task
+(``predictions``):
+
+* comparisons of final returns (``COMPARISONS``): each variant against the cell its hypothesis names, one family
+  over every comparison and task, Welch tests Holm-corrected within it, 'equivalent' only by the TOST of
+  ``stats.EQUIVALENCE_MARGIN`` of the task's normalisation range (``stats.judge_family``, as every grid's
+  verdicts). A prediction that a variant *beats* its reference is met by 'better'; one that it is *not worse* by
+  'better' or 'equivalent'; either is refuted by the opposite verdict, else it is inconclusive;
+* thresholds on the diagnostics (``DIAGNOSTIC_PREDICTIONS``): met or not met;
+* what each variant adds over each control (H4): every variant against every control on every task, a second
+  family corrected within itself.
+
 Writes ``<results-dir>/diagnostics.md`` and ``diagnostics.json``. A cell that is not finished, or whose cycles are
 not archived, is listed as such: nothing is estimated.
 """
@@ -34,10 +46,30 @@ from collections import Counter
 import numpy as np
 
 from experiments.build import stats
-from experiments.build.cells import ARCHIVE_CYCLES, build_info
+from experiments.build.cells import ARCHIVE_CYCLES, build_info, load_run
 from experiments.build.grid import LEARNED, METHOD_NAMES, STUDENT_NAMES, task_folder, task_name
 
 LAST = 100  # cycles per seed at the end of training that the diagnostics read
+VARIANTS = ("learned-paired", "learned-residual", "learned-bandit")
+CONTROLS = ("control-frozen", "control-uniform", "control-fixed", "control-noiseless")
+# The hypotheses' predictions about final returns (results/learned/README.md): (hypothesis, variant, reference,
+# "beats" or "not worse"), each on every task; one family.
+COMPARISONS = (
+    ("H1", "learned-residual", "meta-tuned", "not worse"),
+    ("H1", "learned-residual", "control-fixed", "not worse"),
+    ("H2", "learned-bandit", "control-fixed", "beats"),
+    ("H3", "learned-paired", "control-frozen", "beats"),
+)
+# ... and about the diagnostics: (hypothesis, method, what is predicted, test of its cell_diagnostics).
+DIAGNOSTIC_PREDICTIONS = (
+    ("H1", "learned-residual", "D0's RMS distance from the student between 0.1 and 0.3",
+     lambda d: d["distance_mean"] is not None and 0.1 <= d["distance_mean"] <= 0.3, lambda d: d["distance_mean"]),
+    ("H2", "learned-bandit", "one arm in more than half of the last cycles on more than half of the seeds",
+     lambda d: "bandit" in d and d["bandit"]["seeds_over_half"] > d["seeds"] / 2,
+     lambda d: d["bandit"]["seeds_over_half"] / d["seeds"] if "bandit" in d else None),
+    ("H3", "learned-paired", "paired / unpaired RMS spread of the meta reward at most 0.5",
+     lambda d: d["sd_ratio"] is not None and d["sd_ratio"] <= 0.5, lambda d: d["sd_ratio"]),
+)
 
 
 def read_cycles(path: str) -> dict[int, list[dict]]:
@@ -101,24 +133,127 @@ def cell_diagnostics(cell_dir: str, last: int = LAST) -> dict:
     return out
 
 
-def build(results_dir: str, tasks: list[str], students: list[str], last: int = LAST) -> dict:
-    """{"cells": [{student, task, method, **cell_diagnostics}], "last": last, "built": provenance}."""
+def final_returns(results_dir: str, student: str, task: str, method: str) -> tuple[list[float], int] | None:
+    """(per-seed final returns, budget) of an archived finished cell (``stats.final_returns``), else None."""
+    r = load_run(os.path.join(results_dir, student, "cells", task_folder(task), method), task, method)
+    return None if r is None or not r.complete else ([float(v) for v in r.final()], r.budget)
+
+
+def outcome(kind: str, verdict: str) -> str:
+    """A comparison's prediction ("beats" or "not worse") given its corrected verdict: met, refuted or
+    inconclusive."""
+    if kind == "beats":
+        return "met" if verdict == "better" else "refuted" if verdict in ("worse", "equivalent") else "inconclusive"
+    return "met" if verdict in ("better", "equivalent") else "refuted" if verdict == "worse" else "inconclusive"
+
+
+def judged(results_dir: str, student: str, tasks: list[str], pairs: list[tuple[str, str]],
+           anchors: dict | None) -> list[dict]:
+    """One family: each (a, b) of ``pairs`` on each task, Holm-corrected over those where both cells finished at
+    the same budget (``stats.judge_family``); the others with their state."""
+    rows, tested = [], []
+    for a, b in pairs:
+        for task in tasks:
+            fa, fb = final_returns(results_dir, student, task, a), final_returns(results_dir, student, task, b)
+            row = {"task": task, "a": a, "b": b}
+            if fa is None or fb is None:
+                rows.append({**row, "state": "not run: " + ", ".join(m for m, f in ((a, fa), (b, fb)) if f is None)})
+            elif fa[1] != fb[1]:
+                rows.append({**row, "state": "budgets differ"})
+            else:
+                lo_hi = (anchors or {}).get(task)
+                margin = None if lo_hi is None else stats.EQUIVALENCE_MARGIN * (lo_hi[1] - lo_hi[0])
+                rows.append({**row, "state": "compared", "mean_a": float(np.mean(fa[0])),
+                             "mean_b": float(np.mean(fb[0]))})
+                tested.append((len(rows) - 1, (fa[0], fb[0], margin)))
+    for (i, _), verdict in zip(tested, stats.judge_family([p for _, p in tested])):
+        rows[i].update(verdict)
+    return rows
+
+
+def predictions(results_dir: str, student: str, tasks: list[str], cells: list[dict], anchors: dict | None) -> dict:
+    """The hypotheses' predictions on ``tasks`` (module docstring): {"comparisons": [...], "diagnostics": [...],
+    "controls": [...]}."""
+    comparisons = judged(results_dir, student, tasks, [(a, b) for _, a, b, _ in COMPARISONS], anchors)
+    kinds = {(a, b): (h, kind) for h, a, b, kind in COMPARISONS}
+    for row in comparisons:
+        h, kind = kinds[(row["a"], row["b"])]
+        row.update(hypothesis=h, prediction=kind,
+                   outcome=outcome(kind, row["verdict"]) if row["state"] == "compared" else row["state"])
+    by_cell = {(c["task"], c["method"]): c for c in cells if c["student"] == student}
+    diagnostics = []
+    for h, method, what, test, value in DIAGNOSTIC_PREDICTIONS:
+        for task in tasks:
+            d = by_cell.get((task, method), {"state": "not run"})
+            finished = d["state"] == "finished"
+            diagnostics.append({"hypothesis": h, "method": method, "task": task, "prediction": what,
+                                "value": value(d) if finished else None,
+                                "outcome": ("met" if test(d) else "not met") if finished else d["state"]})
+    controls = judged(results_dir, student, tasks, [(v, c) for v in VARIANTS for c in CONTROLS], anchors)
+    return {"comparisons": comparisons, "diagnostics": diagnostics, "controls": controls}
+
+
+def build(results_dir: str, tasks: list[str], students: list[str], last: int = LAST,
+          anchors: dict | None = None) -> dict:
+    """{"cells": [{student, task, method, **cell_diagnostics}], "predictions": {student: ``predictions``},
+    "last": last, "built": provenance}; ``anchors``: the tasks' normalisation anchors (equivalence margins)."""
     cells = []
     for student in students:
         for task in tasks:
             for method in LEARNED[student]:
                 d = os.path.join(results_dir, student, "cells", task_folder(task), method)
                 cells.append({"student": student, "task": task, "method": method, **cell_diagnostics(d, last)})
-    return {"last": last, "cells": cells, "built": build_info(results_dir)}
+    return {"last": last, "cells": cells, "built": build_info(results_dir),
+            "predictions": {s: predictions(results_dir, s, tasks, cells, anchors) for s in students}}
 
 
 def _f(x, digits=2) -> str:
     return "–" if x is None or (isinstance(x, float) and not math.isfinite(x)) else stats.fmt(x, digits)
 
 
+def _name(method: str) -> str:
+    return METHOD_NAMES.get(method, method)
+
+
+def _verdict_cells(row: dict) -> str:
+    if row["state"] != "compared":
+        return f"– | – | – | – | {row['state']}"
+    f = lambda x: _f(x, None)
+    ci = "" if row["ci95"] is None else f" [{f(row['ci95'][0])}, {f(row['ci95'][1])}]"
+    return (f"{f(row['mean_a'])} vs {f(row['mean_b'])} | {f(row['difference'])}{ci} | "
+            f"{stats.fmt_p(row['p'])} | {stats.fmt_p(row['p_holm'])} | {row['verdict']}")
+
+
+def _predictions_markdown(student: str, pred: dict) -> list[str]:
+    n = sum(r["state"] == "compared" for r in pred["comparisons"])
+    m = sum(r["state"] == "compared" for r in pred["controls"])
+    lines = ["", f"## {student}: the hypotheses' predictions", "",
+             f"Final returns (mean of each seed's last 10% of evaluations): Welch tests, Holm-corrected over the "
+             f"{n} comparisons made; 'equivalent' only by the TOST of ±{stats.EQUIVALENCE_MARGIN:.0%} of the "
+             "task's normalisation range. 'beats' is met by 'better'; 'not worse' by 'better' or 'equivalent'; "
+             "the opposite verdict refutes either; otherwise it is inconclusive.", "",
+             "| hypothesis | prediction | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict | outcome |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for r in pred["comparisons"]:
+        lines.append(f"| {r['hypothesis']} | {_name(r['a'])} {r['prediction']} {_name(r['b'])} | "
+                     f"{task_name(r['task'])} | {_verdict_cells(r)} | {r['outcome']} |")
+    lines += ["", "| hypothesis | prediction (diagnostics) | method | task | measured | outcome |",
+              "|---|---|---|---|---|---|"]
+    for r in pred["diagnostics"]:
+        lines.append(f"| {r['hypothesis']} | {r['prediction']} | {_name(r['method'])} | {task_name(r['task'])} | "
+                     f"{_f(r['value'])} | {r['outcome']} |")
+    lines += ["", f"What each variant adds over each control (H4): a family of its own, Holm-corrected over its {m} "
+              "comparisons made.", "",
+              "| variant | control | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict |",
+              "|---|---|---|---|---|---|---|---|"]
+    for r in pred["controls"]:
+        lines.append(f"| {_name(r['a'])} | {_name(r['b'])} | {task_name(r['task'])} | {_verdict_cells(r)} |")
+    return lines
+
+
 def markdown(report: dict) -> str:
     last = report["last"]
-    lines = ["# Learned exploration: diagnostics of the variants and controls", "",
+    lines = ["# Learned exploration: diagnostics of the variants and controls, and the hypotheses' predictions", "",
              f"From each finished cell's archived per-cycle metrics (`cycles.jsonl.gz`), over each seed's last {last} "
              "cycles, pooled over seeds. Meta reward spread: the root mean square over cycles of the spread (sample "
              "std) over the cycle's eval envs of the per-env differences R_hat(pi') - R_hat(pi) from the same resets "
@@ -142,6 +277,8 @@ def markdown(report: dict) -> str:
                      f"{_f(c['meta_reward_snr'])} | {_f(c['distance_mean'])} ± {_f(c['distance_std'])} | "
                      + (f"{b['seeds_over_half']} of {c['seeds']} | "
                         + ", ".join(f"{k} ({v})" for k, v in b["favourite_counts"].items()) + " |" if b else "– | – |"))
+    for student, pred in report.get("predictions", {}).items():
+        lines += _predictions_markdown(STUDENT_NAMES.get(student, student), pred)
     b = report["built"]
     lines += ["", "---", "", f"Built {b['built']} from `{b['runs_dir']}` at commit `{b['commit']}`"
               + (" (uncommitted changes)" if b.get("dirty") else "") + f" on {b['machine']['platform']}."]
@@ -155,6 +292,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tasks", default="hopper,halfcheetah", help="comma-separated tasks (default hopper,halfcheetah)")
     p.add_argument("--students", default="td3", help=f"comma-separated students of {', '.join(LEARNED)} (default td3)")
     p.add_argument("--last", type=int, default=LAST, help=f"cycles per seed at the end of training (default {LAST})")
+    p.add_argument("--anchors", default=None,
+                   help="normalisation anchors of the equivalence margins (default results/normalisation.json; "
+                        "without them nothing is judged equivalent)")
     a = p.parse_args(argv)
     students = [s for s in a.students.split(",") if s]
     tasks = [t for t in a.tasks.split(",") if t]
@@ -166,7 +306,11 @@ def main(argv: list[str] | None = None) -> int:
     if not os.path.isdir(a.results_dir):
         print(f"error: no folder {a.results_dir!r}", file=sys.stderr)
         return 2
-    report = build(a.results_dir, tasks, students, a.last)
+    from experiments import normalisation
+
+    anchors_path = a.anchors or normalisation.DEFAULT_OUT
+    anchors = normalisation.load(anchors_path) if os.path.exists(anchors_path) else None
+    report = build(a.results_dir, tasks, students, a.last, anchors)
     with open(os.path.join(a.results_dir, "diagnostics.json"), "w") as f:
         json.dump(report, f, indent=1)
         f.write("\n")
