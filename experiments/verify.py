@@ -204,10 +204,11 @@ def main(argv: list[str] | None = None) -> int:
         note = ""
         if r["verdict"] != "reproduced" and not (r["same_cpu"] and r["same_packages"]):
             unknown = [w for w, k in (("CPU", "same_cpu"), ("package versions", "same_packages")) if r[k] is None]
-            other = [w for w, k in (("CPU", "same_cpu"), ("package versions", "same_packages")) if r[k] is False]
-            note = ("; recorded with another " + " and other ".join(other) if other else "") + (
+            other = [w for w, k in (("another CPU", "same_cpu"), ("other package versions", "same_packages"))
+                     if r[k] is False]
+            note = ("; recorded with " + " and ".join(other) if other else "") + (
                 f"; the cell's {' and '.join(unknown)} not recorded" if unknown else "") + (
-                " (bit-for-bit equality needs the same CPU and package builds)")
+                " (bit-for-bit equality needs the same CPU and packages)")
         print(f"{cell}: {r['verdict']} at {r['commit'][:7]}"
               + (f" (recorded: {r['recorded_commit'][:7]})" if "recorded_commit" in r else "")
               + f" over {r['env_steps']:,} env steps (largest relative difference {r['max_relative_difference']})"

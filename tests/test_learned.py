@@ -103,7 +103,9 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
         finals[m] = stats.final_returns(values)
     # Per-cycle metrics for two variants: the residual teacher's D0 at distance 0.2 (within 0.1-0.3), the paired
     # reward's spread ratio 0.8 (above 0.5).
-    for m, row in (("learned-residual", (0.1, 1.0, 1.0, 2.0, 0.2)), ("learned-paired", (0.1, 1.0, 0.8, 1.0, 0.9))):
+    # The bandit's cell has cycles but a config without scales: its arm shares are not measured.
+    for m, row in (("learned-residual", (0.1, 1.0, 1.0, 2.0, 0.2)), ("learned-paired", (0.1, 1.0, 0.8, 1.0, 0.9)),
+                   ("learned-bandit", (0.1, 1.0, 1.0, 1.0, 0.1))):
         with gzip.open(cells_dir / m / cells.ARCHIVE_CYCLES, "wt") as f:
             f.writelines(json.dumps(r) + "\n" for r in _cycles({0: [row] * 5, 1: [row] * 5}))
     anchors = tmp_path / "anchors.json"
@@ -128,13 +130,19 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
     diag = {r["hypothesis"]: r for r in pred["diagnostics"]}
     assert diag["H1"]["outcome"] == "met" and diag["H1"]["value"] == pytest.approx(0.2)
     assert diag["H3"]["outcome"] == "not met" and diag["H3"]["value"] == pytest.approx(0.8)
-    assert diag["H2"]["outcome"] == "no per-cycle metrics archived" and diag["H2"]["value"] is None
+    assert diag["H2"]["outcome"] == "not measured" and diag["H2"]["value"] is None
+    # SAC has no tuned teacher: H1's comparison with it is left out of SAC's family.
+    sac = learned.predictions(str(tmp_path / "res"), "sac", ["hopper"], [], None)["comparisons"]
+    assert [(r["a"], r["b"]) for r in sac] == [(a, b) for _, a, b, _ in learned.COMPARISONS if b != "meta-tuned"]
 
-    # H4: 3 variants x 4 controls; compared where both finished (the 3 variants against fixed noise and uniform D0).
+    # H4: 3 variants x 4 controls less the 3 pairs judged above; compared where both finished (the 3 variants
+    # against uniform D0, the paired-reward teacher against fixed noise).
     done = [r for r in pred["controls"] if r["state"] == "compared"]
-    assert len(pred["controls"]) == 12 and len(done) == 6
+    assert len(pred["controls"]) == 9 and len(done) == 4
+    assert ("learned-residual", "control-fixed") not in {(r["a"], r["b"]) for r in pred["controls"]}
     assert stats.holm([stats.welch_test(finals[r["a"]], finals[r["b"]])[1] for r in done]) == \
         pytest.approx([r["p_holm"] for r in done])
     md = (tmp_path / "res" / "diagnostics.md").read_text()
     assert "| H2 | bandit over noise scales beats control: D0 with noise 0.1 | Hopper |" in md
     assert "| refuted |" in md and "| not run: control-frozen |" in md and "(H4): a family of its own" in md
+    assert learned.main(["--results-dir", str(tmp_path / "res"), "--anchors", str(tmp_path / "none.json")]) == 2

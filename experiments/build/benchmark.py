@@ -256,12 +256,14 @@ def best_fixed_noise(rep: dict, entries: Sequence[Entry]) -> dict[str, str]:
 
 def improvement(scores: dict, entries: Sequence[Entry], present: Sequence[str], best: dict[str, str]) -> list[dict]:
     """The probability of improvement (``stats.probability_of_improvement``) of each entry of the aggregate over
-    its student's baseline (reference "baseline"), then over its student's best fixed noise (``best_fixed_noise``)."""
+    its student's baseline (reference "baseline"), then over its student's best fixed noise (``best_fixed_noise``)
+    where that is not the baseline itself."""
     out = []
     for reference in ("baseline", "best fixed noise"):
         for e in entries:
             y = Entry(e.student, e.baseline).key if reference == "baseline" else best.get(e.student)
-            if e.key not in present or y not in present or y == e.key:
+            if e.key not in present or y not in present or y == e.key or (
+                    reference == "best fixed noise" and y == Entry(e.student, e.baseline).key):
                 continue
             point, lo, hi = stats.probability_of_improvement(scores[e.key], scores[y])
             out.append({"x": e.key, "y": y, "reference": reference, "point": point, "lo": lo, "hi": hi})
@@ -579,7 +581,8 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
             best = rep["best_fixed_noise"].get(e.student, {}).get("entry")
             lines.append(f"| {e.label} | {interval(g) if g else '–'} | "
                          + (f"{interval(b)} ({labels.get(best, best)})" if b else
-                            "– (it is the best)" if best == e.key else "–") + " |")
+                            "– (it is the best)" if best == e.key else
+                            "(its baseline is the best)" if best == Entry(e.student, e.baseline).key else "–") + " |")
     lines += ["", "## Cost", "",
               f"{totals['cells_stored']} stored cells: {_cpu_time(totals)}, wall time "
               f"{_hours(totals['wall_seconds'])}; per cell in `cost.md`."]

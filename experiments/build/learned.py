@@ -23,11 +23,14 @@ Then each hypothesis' predictions, fixed before the screen ran (results/learned/
 * comparisons of final returns (``COMPARISONS``): each variant against the cell its hypothesis names, one family
   over every comparison and task, Welch tests Holm-corrected within it, 'equivalent' only by the TOST of
   ``stats.EQUIVALENCE_MARGIN`` of the task's normalisation range (``stats.judge_family``, as every grid's
-  verdicts). A prediction that a variant *beats* its reference is met by 'better'; one that it is *not worse* by
-  'better' or 'equivalent'; either is refuted by the opposite verdict, else it is inconclusive;
-* thresholds on the diagnostics (``DIAGNOSTIC_PREDICTIONS``): met or not met;
-* what each variant adds over each control (H4): every variant against every control on every task, a second
-  family corrected within itself.
+  verdicts). A prediction that a variant *beats* its reference is met by 'better' and refuted by 'worse' or
+  'equivalent'; one that it is *not worse* is met by 'better' or 'equivalent' and refuted by 'worse'; else it is
+  inconclusive. A comparison whose reference is not one of the student's strategies (the tuned teacher for SAC)
+  is left out;
+* thresholds on the diagnostics (``DIAGNOSTIC_PREDICTIONS``): met, not met, or not measured (the cell has no
+  such metric);
+* what each variant adds over each control (H4): every variant against every control on every task, except the
+  pairs ``COMPARISONS`` already judges, a second family corrected within itself.
 
 Writes ``<results-dir>/diagnostics.md`` and ``diagnostics.json``. A cell that is not finished, or whose cycles are
 not archived, is listed as such: nothing is estimated.
@@ -47,7 +50,7 @@ import numpy as np
 
 from experiments.build import stats
 from experiments.build.cells import ARCHIVE_CYCLES, build_info, load_run
-from experiments.build.grid import LEARNED, METHOD_NAMES, STUDENT_NAMES, task_folder, task_name
+from experiments.build.grid import LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_NAMES, task_folder, task_name
 
 LAST = 100  # cycles per seed at the end of training that the diagnostics read
 VARIANTS = ("learned-paired", "learned-residual", "learned-bandit")
@@ -60,15 +63,16 @@ COMPARISONS = (
     ("H2", "learned-bandit", "control-fixed", "beats"),
     ("H3", "learned-paired", "control-frozen", "beats"),
 )
-# ... and about the diagnostics: (hypothesis, method, what is predicted, test of its cell_diagnostics).
+# ... and about the diagnostics: (hypothesis, method, what is predicted, the measured value from its
+# cell_diagnostics (None: not measured), the prediction as a test of that value).
 DIAGNOSTIC_PREDICTIONS = (
     ("H1", "learned-residual", "D0's RMS distance from the student between 0.1 and 0.3",
-     lambda d: d["distance_mean"] is not None and 0.1 <= d["distance_mean"] <= 0.3, lambda d: d["distance_mean"]),
-    ("H2", "learned-bandit", "one arm in more than half of the last cycles on more than half of the seeds",
-     lambda d: "bandit" in d and d["bandit"]["seeds_over_half"] > d["seeds"] / 2,
-     lambda d: d["bandit"]["seeds_over_half"] / d["seeds"] if "bandit" in d else None),
+     lambda d: d["distance_mean"], lambda v: 0.1 <= v <= 0.3),
+    ("H2", "learned-bandit", "one arm in more than half of the last cycles on more than half of the seeds "
+     "(measured: the fraction of such seeds)",
+     lambda d: d["bandit"]["seeds_over_half"] / d["seeds"] if "bandit" in d else None, lambda v: v > 0.5),
     ("H3", "learned-paired", "paired / unpaired RMS spread of the meta reward at most 0.5",
-     lambda d: d["sd_ratio"] is not None and d["sd_ratio"] <= 0.5, lambda d: d["sd_ratio"]),
+     lambda d: d["sd_ratio"], lambda v: v <= 0.5),
 )
 
 
@@ -174,22 +178,27 @@ def judged(results_dir: str, student: str, tasks: list[str], pairs: list[tuple[s
 def predictions(results_dir: str, student: str, tasks: list[str], cells: list[dict], anchors: dict | None) -> dict:
     """The hypotheses' predictions on ``tasks`` (module docstring): {"comparisons": [...], "diagnostics": [...],
     "controls": [...]}."""
-    comparisons = judged(results_dir, student, tasks, [(a, b) for _, a, b, _ in COMPARISONS], anchors)
-    kinds = {(a, b): (h, kind) for h, a, b, kind in COMPARISONS}
+    own = (*STRATEGIES.get(student, ()), *LEARNED.get(student, ()))
+    mine = [c for c in COMPARISONS if c[1] in own and c[2] in own]
+    comparisons = judged(results_dir, student, tasks, [(a, b) for _, a, b, _ in mine], anchors)
+    kinds = {(a, b): (h, kind) for h, a, b, kind in mine}
     for row in comparisons:
         h, kind = kinds[(row["a"], row["b"])]
         row.update(hypothesis=h, prediction=kind,
                    outcome=outcome(kind, row["verdict"]) if row["state"] == "compared" else row["state"])
     by_cell = {(c["task"], c["method"]): c for c in cells if c["student"] == student}
     diagnostics = []
-    for h, method, what, test, value in DIAGNOSTIC_PREDICTIONS:
+    for h, method, what, value, test in DIAGNOSTIC_PREDICTIONS:
         for task in tasks:
             d = by_cell.get((task, method), {"state": "not run"})
-            finished = d["state"] == "finished"
-            diagnostics.append({"hypothesis": h, "method": method, "task": task, "prediction": what,
-                                "value": value(d) if finished else None,
-                                "outcome": ("met" if test(d) else "not met") if finished else d["state"]})
-    controls = judged(results_dir, student, tasks, [(v, c) for v in VARIANTS for c in CONTROLS], anchors)
+            v = value(d) if d["state"] == "finished" else None
+            v = None if v is None or not math.isfinite(v) else float(v)
+            diagnostics.append({"hypothesis": h, "method": method, "task": task, "prediction": what, "value": v,
+                                "outcome": d["state"] if d["state"] != "finished" else "not measured" if v is None
+                                else "met" if test(v) else "not met"})
+    judged_pairs = {(a, b) for _, a, b, _ in mine}
+    controls = judged(results_dir, student, tasks, [(v, c) for v in VARIANTS for c in CONTROLS
+                                                    if (v, c) not in judged_pairs], anchors)
     return {"comparisons": comparisons, "diagnostics": diagnostics, "controls": controls}
 
 
@@ -224,14 +233,16 @@ def _verdict_cells(row: dict) -> str:
             f"{stats.fmt_p(row['p'])} | {stats.fmt_p(row['p_holm'])} | {row['verdict']}")
 
 
-def _predictions_markdown(student: str, pred: dict) -> list[str]:
+def _predictions_markdown(student: str, pred: dict, anchors: str | None) -> list[str]:
     n = sum(r["state"] == "compared" for r in pred["comparisons"])
     m = sum(r["state"] == "compared" for r in pred["controls"])
     lines = ["", f"## {student}: the hypotheses' predictions", "",
              f"Final returns (mean of each seed's last 10% of evaluations): Welch tests, Holm-corrected over the "
              f"{n} comparisons made; 'equivalent' only by the TOST of ±{stats.EQUIVALENCE_MARGIN:.0%} of the "
-             "task's normalisation range. 'beats' is met by 'better'; 'not worse' by 'better' or 'equivalent'; "
-             "the opposite verdict refutes either; otherwise it is inconclusive.", "",
+             "task's normalisation range (" + (f"`{anchors}`; " if anchors else "no anchors: ") + "a task without "
+             "anchors is never equivalent). 'beats' is met by 'better' and "
+             "refuted by 'worse' or 'equivalent'; 'not worse' is met by 'better' or 'equivalent' and refuted by "
+             "'worse'; otherwise it is inconclusive.", "",
              "| hypothesis | prediction | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict | outcome |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in pred["comparisons"]:
@@ -243,7 +254,7 @@ def _predictions_markdown(student: str, pred: dict) -> list[str]:
         lines.append(f"| {r['hypothesis']} | {r['prediction']} | {_name(r['method'])} | {task_name(r['task'])} | "
                      f"{_f(r['value'])} | {r['outcome']} |")
     lines += ["", f"What each variant adds over each control (H4): a family of its own, Holm-corrected over its {m} "
-              "comparisons made.", "",
+              "comparisons made (the pairs above are judged there only).", "",
               "| variant | control | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict |",
               "|---|---|---|---|---|---|---|---|"]
     for r in pred["controls"]:
@@ -278,7 +289,7 @@ def markdown(report: dict) -> str:
                      + (f"{b['seeds_over_half']} of {c['seeds']} | "
                         + ", ".join(f"{k} ({v})" for k, v in b["favourite_counts"].items()) + " |" if b else "– | – |"))
     for student, pred in report.get("predictions", {}).items():
-        lines += _predictions_markdown(STUDENT_NAMES.get(student, student), pred)
+        lines += _predictions_markdown(STUDENT_NAMES.get(student, student), pred, report.get("anchors"))
     b = report["built"]
     lines += ["", "---", "", f"Built {b['built']} from `{b['runs_dir']}` at commit `{b['commit']}`"
               + (" (uncommitted changes)" if b.get("dirty") else "") + f" on {b['machine']['platform']}."]
@@ -308,9 +319,13 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     from experiments import normalisation
 
+    if a.anchors is not None and not os.path.isfile(a.anchors):
+        print(f"error: no anchors file {a.anchors!r}", file=sys.stderr)
+        return 2
     anchors_path = a.anchors or normalisation.DEFAULT_OUT
     anchors = normalisation.load(anchors_path) if os.path.exists(anchors_path) else None
     report = build(a.results_dir, tasks, students, a.last, anchors)
+    report["anchors"] = os.path.relpath(anchors_path) if anchors is not None else None
     with open(os.path.join(a.results_dir, "diagnostics.json"), "w") as f:
         json.dump(report, f, indent=1)
         f.write("\n")

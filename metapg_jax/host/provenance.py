@@ -40,8 +40,10 @@ def cpu_fingerprint() -> str:
 
 # The installed distributions whose versions can change a run's numbers (XLA's compiler, MuJoCo's C engine,
 # the numerics libraries) or its meaning (the environments' definitions).
-PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-mjx", "brax", "flax", "optax", "chex", "numpy", "gymnasium",
-            "orbax-checkpoint")
+# (``mujoco`` 4 is a metapackage; its compiled engine is ``mujoco-core``.) Versions, not builds: a reinstall of the
+# same versions is not told apart.
+PACKAGES = ("jax", "jaxlib", "mujoco", "mujoco-core", "mujoco-mjx", "brax", "flax", "optax", "chex", "numpy",
+            "gymnasium", "orbax-checkpoint")
 
 
 def package_versions(names: tuple[str, ...] = PACKAGES) -> dict[str, str | None]:
