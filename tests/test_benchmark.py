@@ -269,6 +269,11 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
     row = next(c for c in cost["cells"] if (c["task"], c["method"]) == ("hopper", "td3-pink"))
     assert row["cpu_seconds"] == 40.0 and row["wall_seconds"] == 25.0 and row["train_seconds"] == 20.0
     assert row["env_steps_per_second"] == pytest.approx(4 * 3000 / 20.0) and row["compile_seconds"] == 0.5
+    # At the paper's budget (Hopper: 990k), projected from the record: compile + the rest scaled by 990k / 3k.
+    assert row["paper_budget"] == 990_000 and row["paper_budget_wall_seconds"] == pytest.approx(0.5 + 24.5 * 330)
+    assert row["paper_budget_cpu_seconds"] == pytest.approx(40.0 * (0.5 + 24.5 * 330) / 25.0, abs=0.1)
+    gym_row = next(c for c in cost["cells"] if c["task"] == gym_task and c["method"] == "td3-pink")
+    assert "paper_budget" not in gym_row                       # a gym: task has no paper budget
     assert next(c for c in cost["cells"] if c["method"] == "sac-pink" and c["task"] == "reacher")["status"] == "not run"
     assert cost["totals"]["cpu_seconds"] == 40.0 and cost["totals"]["cells_not_run"] == 1
     readme = (results / "README.md").read_text()

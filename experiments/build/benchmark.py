@@ -28,8 +28,8 @@ from typing import Sequence
 import numpy as np
 
 from experiments.build import cells, stats, tables
-from experiments.build.grid import (LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, noise_methods,
-                                    task_folder, task_name)
+from experiments.build.grid import (LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, TASK_NAMES,
+                                    noise_methods, task_folder, task_name)
 
 # The preset of every student's grid (a grid method with a preset of its own, the tuned teacher, keeps it).
 PRESET = "paper"
@@ -394,7 +394,10 @@ def cost_rows(results: dict, entries: Sequence[Entry], tasks: Sequence[str]) -> 
     recorded calls (reproduce.json, compile included), their CPU seconds (the process's user + system time, where
     recorded), training seconds of every call after compiling (the metrics rows, ``metric_rows.training_seconds``),
     the last call's compile seconds (summary.json), env steps per second (seeds x env steps / training seconds)
-    and the machine's CPU count."""
+    and the machine's CPU count; for a finished cell of a paper task, what the same cell would take at the
+    paper's budget (``paper_budget_projection``)."""
+    from envs import default_budget
+
     out = []
     for t in tasks:
         for e in entries:
@@ -414,7 +417,23 @@ def cost_rows(results: dict, entries: Sequence[Entry], tasks: Sequence[str]) -> 
                         "train_seconds": train, "compile_seconds": r.summary.get("compile_seconds"),
                         "env_steps_per_second": round(steps / train, 1) if train else None,
                         "cpu_count": (prov["machine"] or {}).get("cpu_count"), "physics": prov["physics"]})
+            if r.complete and t in TASK_NAMES:
+                out[-1].update(paper_budget_projection(out[-1], default_budget(t)))
     return out
+
+
+def paper_budget_projection(row: dict, budget: int) -> dict:
+    """What a finished cell would cost at ``budget`` env steps per seed, projected (not measured) from its own
+    record: its compile seconds plus the rest of its wall time scaled by budget / its env steps; CPU seconds at
+    its recorded CPU per wall second. Empty where the record lacks the wall time."""
+    wall, done = row.get("wall_seconds"), row.get("env_steps_done")
+    if not wall or not done:
+        return {}
+    compile_s = min(row.get("compile_seconds") or 0.0, wall)
+    projected = compile_s + (wall - compile_s) * budget / done
+    cpu = row.get("cpu_seconds")
+    return {"paper_budget": budget, "paper_budget_wall_seconds": round(projected, 1),
+            "paper_budget_cpu_seconds": round(cpu * projected / wall, 1) if cpu else None}
 
 
 def cost_totals(rows: list[dict]) -> dict:
@@ -429,6 +448,8 @@ def cost_totals(rows: list[dict]) -> dict:
             "cells_not_run": len(rows) - len(stored),
             "wall_seconds": total("wall_seconds"), "cpu_seconds": total("cpu_seconds"),
             "train_seconds": total("train_seconds"),
+            "paper_budget_wall_seconds": total("paper_budget_wall_seconds"),
+            "paper_budget_cpu_seconds": total("paper_budget_cpu_seconds"),
             "calls_with_cpu_record": sum(r["cpu_seconds_calls"] or 0 for r in stored), "calls": calls,
             "cells_without_cpu_record": [f"{r['student']}/{r['task']}/{r['method']}" for r in stored
                                          if r.get("cpu_seconds") is None]}
@@ -461,9 +482,15 @@ def write_cost(rows: list[dict], totals: dict, out_dir: str, footer: str) -> lis
           "evaluations, checkpoints); CPU s: their process CPU time (user + system, all threads); training s: every "
           "call's chunks after compiling (the metrics rows; also calls that a shutdown killed before they were "
           "recorded); compile s: the last call's compile (`summary.json`); env steps/s: seeds × env steps / "
-          "training s; CPUs: the machine's core count. Nothing is estimated: a cell not run costs nothing here.", "",
+          "training s; CPUs: the machine's core count. Nothing is estimated: a cell not run costs nothing here.",
+          "- at the paper's budget: what the same finished cell would take at the paper's env steps per seed "
+          "(`envs.default_budget`), projected from its own record, not measured: its compile seconds plus the rest "
+          "of its wall time scaled by the budget over its env steps; CPU at its recorded CPU per wall second. "
+          f"Over the finished cells: wall {_hours(totals.get('paper_budget_wall_seconds'))}, CPU "
+          f"{_hours(totals.get('paper_budget_cpu_seconds'))}.", "",
           "| task | student | strategy | state | seeds | env steps | wall s | CPU s | training s | compile s | "
-          "env steps/s | CPUs |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+          "env steps/s | CPUs | paper budget | wall s at it (projected) | CPU s at it (projected) |",
+          "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         state = (r["status"] if r["status"] != "incomplete" else
                  f"incomplete ({r['env_steps_done']:,} of {r['budget']:,})")
@@ -472,7 +499,8 @@ def write_cost(rows: list[dict], totals: dict, out_dir: str, footer: str) -> lis
                   f"{num(r.get('seeds'))} | {num(r.get('env_steps_done'))} | {num(r.get('wall_seconds'))} | "
                   f"{num(r.get('cpu_seconds'))} | {num(r.get('train_seconds'))} | "
                   f"{num(r.get('compile_seconds'), '{:,.1f}')} | {num(r.get('env_steps_per_second'))} | "
-                  f"{num(r.get('cpu_count'))} |")
+                  f"{num(r.get('cpu_count'))} | {num(r.get('paper_budget'))} | "
+                  f"{num(r.get('paper_budget_wall_seconds'))} | {num(r.get('paper_budget_cpu_seconds'))} |")
     md.append(footer)
     with open(paths[0], "w") as f:
         f.write("\n".join(md))
@@ -585,7 +613,10 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
                             "(its baseline is the best)" if best == Entry(e.student, e.baseline).key else "–") + " |")
     lines += ["", "## Cost", "",
               f"{totals['cells_stored']} stored cells: {_cpu_time(totals)}, wall time "
-              f"{_hours(totals['wall_seconds'])}; per cell in `cost.md`."]
+              f"{_hours(totals['wall_seconds'])}; per cell in `cost.md`, with what each finished cell would take at "
+              f"the paper's budget (projected from its own record, not measured; over the finished cells: wall "
+              f"{_hours(totals.get('paper_budget_wall_seconds'))}, CPU "
+              f"{_hours(totals.get('paper_budget_cpu_seconds'))})."]
     lines.append(footer)
     path = os.path.join(out_dir, "README.md")
     with open(path, "w") as f:

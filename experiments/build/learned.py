@@ -243,7 +243,8 @@ def _predictions_markdown(student: str, pred: dict, anchors: str | None) -> list
              "anchors is never equivalent). 'beats' is met by 'better' and "
              "refuted by 'worse' or 'equivalent'; 'not worse' is met by 'better' or 'equivalent' and refuted by "
              "'worse'; otherwise it is inconclusive.", "",
-             "| hypothesis | prediction | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict | outcome |",
+             "| hypothesis | prediction | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict | "
+             "outcome |",
              "|---|---|---|---|---|---|---|---|---|"]
     for r in pred["comparisons"]:
         lines.append(f"| {r['hypothesis']} | {_name(r['a'])} {r['prediction']} {_name(r['b'])} | "
