@@ -280,6 +280,16 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
     mean, std = stats.mean_std(final("hopper", "td3-pink"))
     assert "1 not run (sac/reacher/sac-pink)" in readme and "| SAC | SAC (pink noise) |" in readme
     assert f"| TD3 | TD3 (pink noise) | {stats.fmt(mean)} ± {stats.fmt(std)} (better) |" in readme
+    # Verdict counts per strategy: its tasks judged against the baseline (SAC's pink noise: reacher not run).
+    counts = manifest["verdict_counts"]
+    assert set(counts) == {"td3/td3-pink", "td3/meta-independent", "sac/sac-pink"}
+    assert sum(counts["td3/td3-pink"].values()) == 3 and sum(counts["sac/sac-pink"].values()) == 2
+    said = [r["verdict"]["verdict"] for t in ("hopper", "reacher", gym_task) for r in rows_of(grid.task_folder(t))
+            if r["method"] == "td3-pink"]
+    assert counts["td3/td3-pink"] == {v: said.count(v) for v in stats.VERDICTS} and counts["td3/td3-pink"]["better"]
+    line = next(x for x in readme.splitlines() if x.startswith("| TD3 | TD3 (pink noise) |"))
+    assert line.endswith(" | " + " / ".join(str(counts["td3/td3-pink"][v]) for v in stats.VERDICTS) + " |")
+    assert "| verdicts (better / worse / equivalent / inconclusive) |" in readme
 
     # A baseline chosen in advance (TD3's pink noise): it is planned, Gaussian noise is not unless named, and the
     # verdicts and P(improvement) of TD3's other strategies are against it.

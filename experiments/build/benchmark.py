@@ -129,11 +129,11 @@ def collect(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Se
 
 def student_rows(results: dict, entries: Sequence[Entry], tasks: Sequence[str]) -> dict[str, list[dict]]:
     """{student: ``tables.table2_rows`` of its cells} (per task and method: status, mean, std, CI, per-seed finals)."""
-    out = {}
-    for student in dict.fromkeys(e.student for e in entries):
+    out, bases = {}, baselines_of(entries)
+    for student in bases:
         methods = [e.method for e in entries if e.student == student]
         mine = {(t, m): r for (s, t, m), r in results.items() if s == student}
-        out[student] = tables.table2_rows(mine, tasks, methods, baselines_of(entries)[student])
+        out[student] = tables.table2_rows(mine, tasks, methods, bases[student])
     return out
 
 
@@ -141,9 +141,9 @@ def verdicts(rows: dict[str, list[dict]], entries: Sequence[Entry], anchors: dic
     """{student: its family of corrected verdicts} (``tables.verdict_family``): every other strategy of the student
     against its baseline on every task where both finished at the same budget, Holm-corrected within the family;
     equivalence within ``stats.EQUIVALENCE_MARGIN`` of the task's anchors' range."""
-    out = {}
+    out, bases = {}, baselines_of(entries)
     for student, student_rows_ in rows.items():
-        base = baselines_of(entries)[student]
+        base = bases[student]
         others = [e.method for e in entries if e.student == student and e.method != base]
         out[student] = tables.verdict_family(student_rows_, base, others, anchors)
     return out
@@ -261,9 +261,9 @@ def improvement(scores: dict, entries: Sequence[Entry], present: Sequence[str], 
     out = []
     for reference in ("baseline", "best fixed noise"):
         for e in entries:
-            y = Entry(e.student, e.baseline).key if reference == "baseline" else best.get(e.student)
-            if e.key not in present or y not in present or y == e.key or (
-                    reference == "best fixed noise" and y == Entry(e.student, e.baseline).key):
+            base = Entry(e.student, e.baseline).key
+            y = base if reference == "baseline" else best.get(e.student)
+            if e.key not in present or y not in present or y == e.key or (reference != "baseline" and y == base):
                 continue
             point, lo, hi = stats.probability_of_improvement(scores[e.key], scores[y])
             out.append({"x": e.key, "y": y, "reference": reference, "point": point, "lo": lo, "hi": hi})
@@ -529,14 +529,29 @@ FILES = {
 }
 
 
+def verdict_counts(tables_: dict[str, list[dict]], entries: Sequence[Entry],
+                   tasks: Sequence[str]) -> dict[str, dict[str, int]]:
+    """{entry key: {verdict: number of tasks}} (``stats.VERDICTS``) of every entry but the baselines: its per-task
+    verdicts against its student's baseline; a task where it was not compared (a cell not finished) is not
+    counted."""
+    out = {}
+    for i, e in enumerate(entries):
+        if e.method != e.baseline:
+            said = [tables_[t][i]["verdict"]["verdict"] for t in tasks if tables_[t][i]["verdict"]]
+            out[e.key] = {v: said.count(v) for v in stats.VERDICTS}
+    return out
+
+
 def _final_matrix(tables_: dict[str, list[dict]], entries: Sequence[Entry], tasks: Sequence[str]) -> list[str]:
     cell = lambda r: (tables.cell_text(r) + ("" if r["method"] == r["baseline"] else
                                              f" ({r['verdict']['verdict']})" if r["verdict"] else ""))
-    lines = ["| student | strategy | " + " | ".join(task_name(t) for t in tasks) + " |",
-             "|---|---|" + "---|" * len(tasks)]
+    counts = verdict_counts(tables_, entries, tasks)
+    lines = ["| student | strategy | " + " | ".join(task_name(t) for t in tasks) + " | verdicts ("
+             + " / ".join(stats.VERDICTS) + ") |", "|---|---|" + "---|" * (len(tasks) + 1)]
     for i, e in enumerate(entries):
+        said = "baseline" if e.key not in counts else " / ".join(str(counts[e.key][v]) for v in stats.VERDICTS)
         lines.append(f"| {STUDENT_NAMES.get(e.student, e.student)} | {e.label} | "
-                     + " | ".join(cell(tables_[t][i]) for t in tasks) + " |")
+                     + " | ".join(cell(tables_[t][i]) for t in tasks) + f" | {said} |")
     return lines
 
 
@@ -579,8 +594,7 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
     lines += ["", "## Final return per task", "",
               f"Mean ± std of the seeds' final returns ({stats.FINAL_DEFINITION}); in brackets the verdict against "
               "the student's baseline (" + _baselines_text(entries) + "; Holm-corrected within the student's family; "
-              "details per task in "
-              "`tasks/`).",
+              "details per task in `tasks/`); in the last column the number of tasks with each verdict.",
               ""] + _final_matrix(tables_, entries, tasks)
     lines += ["", "## Aggregate over tasks", ""]
     if rep is None:
@@ -679,7 +693,7 @@ def build(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Sequ
                     if (e.student, t, e.method) not in results],
         "unfinished": [[e.student, t, e.method] for t in tasks for e in entries
                        if (e.student, t, e.method) in results and not results[(e.student, t, e.method)].complete],
-        "cost": totals,
+        "cost": totals, "verdict_counts": verdict_counts(per_task, entries, tasks),
         **({"aggregate": {"tasks": rep["tasks"], "left_out": rep["left_out"],
                           "best_fixed_noise": rep["best_fixed_noise"]}} if rep else {"aggregate_not_built": why})}
     write_readme(results_dir, manifest, per_task, entries, tasks, rep, totals, footer)

@@ -307,6 +307,9 @@ def tost(a: Sequence[float], b: Sequence[float], margin: float) -> float:
     return float(max(p_low, p_high))
 
 
+VERDICTS = ("better", "worse", "equivalent", "inconclusive")  # what ``corrected_verdict`` can say
+
+
 def corrected_verdict(diff: float, p_holm: float, p_tost_holm: float, alpha: float = 0.05) -> str:
     """'better' / 'worse' where the Holm-corrected difference test rejects (by the sign of ``diff``),
     'equivalent' where the Holm-corrected equivalence test (``tost``) does, else 'inconclusive'."""
