@@ -29,7 +29,15 @@ import numpy as np
 from experiments.build import stats
 from experiments.build.grid import METHOD_NAMES, TASK_NAMES, noise_methods, task_name
 
-PROFILE_TAUS = np.linspace(0.0, 2.0, 81)
+PROFILE_TAUS = np.linspace(0.0, 2.0, 81)  # the profiles' thresholds, widened where a seed scores above 2
+
+
+def profile_taus(scores: dict) -> np.ndarray:
+    """The performance profiles' thresholds: ``PROFILE_TAUS``, or 0 to the highest score (up to the next
+    quarter) where some seed scores above their end, so every profile reaches 0 inside the figure."""
+    top = max((float(np.max(a)) for per_task in scores.values() for a in per_task if len(a)), default=0.0)
+    end = max(float(PROFILE_TAUS[-1]), np.ceil(top * 4) / 4)
+    return PROFILE_TAUS if end == PROFILE_TAUS[-1] else np.linspace(0.0, end, len(PROFILE_TAUS))
 
 
 def grid_methods(grid: dict) -> list[str]:
@@ -146,10 +154,12 @@ def plot_profiles(methods: list[str], scores: dict, path: str, title: str, label
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    for m in methods:
-        point, lo, hi = stats.performance_profile(scores[m], PROFILE_TAUS)
-        line, = ax.plot(PROFILE_TAUS, point, label=labels.get(m, m))
-        ax.fill_between(PROFILE_TAUS, lo, hi, alpha=0.15, color=line.get_color())
+    taus = profile_taus({m: scores[m] for m in methods})
+    for i, m in enumerate(methods):
+        point, lo, hi = stats.performance_profile(scores[m], taus)
+        # past the colour cycle's 10 colours, the next 10 lines are dashed, then dotted
+        line, = ax.plot(taus, point, label=labels.get(m, m), linestyle=("-", "--", ":")[i // 10 % 3])
+        ax.fill_between(taus, lo, hi, alpha=0.15, color=line.get_color())
     ax.set_xlabel("normalised final return τ (0 = random policy, 1 = reference)")
     ax.set_ylabel("fraction of seeds with score > τ")
     ax.set_title(f"{title}: performance profiles (95% stratified bootstrap bands)", fontsize=9)

@@ -53,6 +53,16 @@ def test_the_report_normalises_pools_the_common_tasks_and_compares_teachers_with
         aggregate.report(grid, {"hopper": ANCHORS["hopper"]})
 
 
+def test_the_profiles_thresholds_reach_the_highest_score():
+    """0 to 2 unless a seed scores higher; then up to the next quarter above it, so every profile reaches 0."""
+    low = {"a": [np.array([0.2, 1.1]), np.array([1.9])], "b": [np.array([-0.5])]}
+    assert aggregate.profile_taus(low) is aggregate.PROFILE_TAUS
+    taus = aggregate.profile_taus({**low, "c": [np.array([0.4]), np.array([2.48, 1.0])]})
+    assert taus[0] == 0.0 and taus[-1] == 2.5 and len(taus) == len(aggregate.PROFILE_TAUS)
+    point, _, _ = stats.performance_profile([np.array([0.4]), np.array([2.48, 1.0])], taus, reps=10)
+    assert point[-1] == 0.0 and point[0] == 1.0
+
+
 def test_the_command_writes_the_report_and_refuses_missing_files(tmp_path, capsys):
     grid_path, anchors_path = tmp_path / "table2.json", tmp_path / "anchors.json"
     grid_path.write_text(json.dumps(_grid()))
