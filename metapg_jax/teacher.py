@@ -138,9 +138,14 @@ class Teacher:
         return jnp.sum(log_std + 0.5 * _LOG_2PI_E, axis=-1)
 
     def diagnostics(self, params: Params, student_actor: Params, obs_normalized: jax.Array) -> dict:
-        """The cycle's teacher metrics on D0's observations: mean log-std of pi_e and its mean entropy (nats)."""
-        _, log_std = self.distribution(params, student_actor, obs_normalized)
-        return {"teacher_log_std": jnp.mean(log_std), "teacher_entropy": jnp.mean(self.entropy(log_std))}
+        """The cycle's teacher metrics on D0's observations: mean log-std of pi_e, its mean entropy (nats), and
+        the RMS distance of its mean (clipped to the action range) from the student's action: how far what the
+        teacher learned moves it from the student, its noise left out (the cycle's ``teacher_student_distance``
+        is D0's actions', noise included)."""
+        mean, log_std = self.distribution(params, student_actor, obs_normalized)
+        student = self.student.actor_apply(student_actor, obs_normalized)
+        return {"teacher_log_std": jnp.mean(log_std), "teacher_entropy": jnp.mean(self.entropy(log_std)),
+                "teacher_mean_distance": jnp.sqrt(jnp.mean(jnp.square(jnp.clip(mean, -1.0, 1.0) - student)))}
 
     def reinforce_loss(self, params, student_actor, obs_normalized, raw_actions, meta_reward):
         """-R(D0) * sum_t log pi_e(a_t|s_t): its gradient is minus the paper's eq. 5 ascent direction."""

@@ -14,10 +14,12 @@ from experiments.build.grid import LEARNED_METHODS
 
 
 def _cycles(seeds):
-    """Rows of cycles.jsonl: {seed: [(arm scale, meta reward, sd paired, sd unpaired, distance), ...]}."""
+    """Rows of cycles.jsonl: {seed: [(arm scale, meta reward, sd paired, sd unpaired, distance[, the teacher
+    mean's distance]), ...]}."""
     return [{"seed": s, "cycle": c, "meta_reward": r, "teacher_log_std": math.log(scale), "r_hat_pi": 0.0,
-             "meta_reward_sd_paired": p, "meta_reward_sd_unpaired": u, "teacher_student_distance": d}
-            for s, rows in seeds.items() for c, (scale, r, p, u, d) in enumerate(rows)]
+             "meta_reward_sd_paired": p, "meta_reward_sd_unpaired": u, "teacher_student_distance": d,
+             **({"teacher_mean_distance": m[0]} if m else {})}
+            for s, rows in seeds.items() for c, (scale, r, p, u, d, *m) in enumerate(rows)]
 
 
 def _run(path, config, rows):
@@ -58,6 +60,7 @@ def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
     assert np.isclose(d["meta_reward_mean"], rewards.mean()) and np.isclose(d["meta_reward_std"], rewards.std(ddof=1))
     assert np.isclose(d["meta_reward_snr"], abs(rewards.mean()) / rewards.std(ddof=1))
     assert np.isclose(d["distance_mean"], 0.4) and np.isclose(d["distance_std"], 0.2)
+    assert d["mean_distance_mean"] is None     # a cell made before the teacher mean's distance was recorded
     b = d["bandit"]
     assert [f["scale"] for f in b["favourites"]][::2] == [0.4, 0.1]   # seed 1's tie goes to either
     assert [f["share"] for f in b["favourites"]] == [0.8, 0.5, 1.0]
@@ -70,7 +73,8 @@ def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
     row = next(line for line in md.splitlines() if "| bandit over noise scales |" in line)
     assert "| 3 | 3.606 | 4.000 | 0.90 |" in row and "| 2 of 3 |" in row
     rows = [line for line in md.splitlines() if line.startswith("| TD3 ")]
-    assert len(rows) == len(LEARNED_METHODS) and all(line.count("|") == 13 for line in rows)
+    assert len(rows) == len(LEARNED_METHODS) and all(line.count("|") == 14 for line in rows)
+    assert "| 0.40 ± 0.20 | – |" in row
     assert sum("| not run |" in line for line in rows) == len(LEARNED_METHODS) - 1
     assert json.loads((out / "diagnostics.json").read_text())["cells"][2]["bandit"]["seeds_over_half"] == 2
 
@@ -101,13 +105,14 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
         values = rng.normal(mean, 5.0, (8, 10))
         fabricate_run(str(cells_dir / m), "hopper", m, values, steps)
         finals[m] = stats.final_returns(values)
-    # Per-cycle metrics for two variants: the residual teacher's D0 at distance 0.2 (within 0.1-0.3), the paired
-    # reward's spread ratio 0.8 (above 0.5).
+    # Per-cycle metrics for two variants: the residual teacher's D0 at distance 0.2 (at most 0.3; its mean at 0.05
+    # and 0.15 on the two seeds), the paired reward's spread ratio 0.8 (above 0.5).
     # The bandit's cell has cycles but a config without scales: its arm shares are not measured.
-    for m, row in (("learned-residual", (0.1, 1.0, 1.0, 2.0, 0.2)), ("learned-paired", (0.1, 1.0, 0.8, 1.0, 0.9)),
-                   ("learned-bandit", (0.1, 1.0, 1.0, 1.0, 0.1))):
+    for m, row, row1 in (("learned-residual", (0.1, 1.0, 1.0, 2.0, 0.2, 0.05), (0.1, 1.0, 1.0, 2.0, 0.2, 0.15)),
+                         ("learned-paired", (0.1, 1.0, 0.8, 1.0, 0.9), None),
+                         ("learned-bandit", (0.1, 1.0, 1.0, 1.0, 0.1), None)):
         with gzip.open(cells_dir / m / cells.ARCHIVE_CYCLES, "wt") as f:
-            f.writelines(json.dumps(r) + "\n" for r in _cycles({0: [row] * 5, 1: [row] * 5}))
+            f.writelines(json.dumps(r) + "\n" for r in _cycles({0: [row] * 5, 1: [row1 or row] * 5}))
     anchors = tmp_path / "anchors.json"
     anchors.write_text(json.dumps({"tasks": {"hopper": {"random_return": 0.0, "reference_return": 1000.0}}}))
     assert learned.main(["--results-dir", str(tmp_path / "res"), "--tasks", "hopper", "--anchors", str(anchors)]) == 0
@@ -129,6 +134,10 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
 
     diag = {r["hypothesis"]: r for r in pred["diagnostics"]}
     assert diag["H1"]["outcome"] == "met" and diag["H1"]["value"] == pytest.approx(0.2)
+    residual = next(c for c in json.loads((tmp_path / "res" / "diagnostics.json").read_text())["cells"]
+                    if c["method"] == "learned-residual")
+    assert residual["mean_distance_mean"] == pytest.approx(0.1) and residual["mean_distance_std"] == pytest.approx(
+        np.std([0.05, 0.15], ddof=1))
     assert diag["H3"]["outcome"] == "not met" and diag["H3"]["value"] == pytest.approx(0.8)
     assert diag["H2"]["outcome"] == "not measured" and diag["H2"]["value"] is None
     # SAC has no tuned teacher: H1's comparison with it is left out of SAC's family.

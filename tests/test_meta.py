@@ -256,6 +256,11 @@ def test_the_residual_teacher_starts_at_the_student_and_stays_within_its_bound()
     far = teacher.distribution({**state.params, "offset": big}, actor, obs)[0]
     assert float(jnp.max(jnp.abs(far - student))) <= teacher.max_offset + 1e-6
     assert float(jnp.max(jnp.abs(far - student))) > 0.9 * teacher.max_offset
+    # The teacher mean's distance from the student, its noise left out: 0 at the start, the offset's RMS once moved
+    # (the clipped mean's: near a student's action at the range's edge, part of the offset is cut off).
+    assert float(teacher.diagnostics(state.params, actor, obs)["teacher_mean_distance"]) == 0.0
+    moved = teacher.diagnostics({**state.params, "offset": big}, actor, obs)["teacher_mean_distance"]
+    np.testing.assert_allclose(moved, np.sqrt(np.mean(np.square(np.clip(far, -1, 1) - student))), rtol=1e-5)
     # REINFORCE moves the offset toward the rewarded actions (the student's action is near 0, the target 0.72 away:
     # the bound 0.3 leaves 0.4 to gain).
     before, after = _reinforce_toy(+1.0, "residual")
@@ -308,6 +313,8 @@ def test_the_uniform_teacher_draws_uniform_actions_and_learns_nothing():
     assert action.shape == (20000, 2) and float(jnp.min(action)) >= -1 and float(jnp.max(action)) <= 1
     np.testing.assert_allclose(np.var(np.asarray(action), axis=0), 1 / 3, rtol=0.03)
     assert teacher.update(state, actor, obs, raw, 7.0) is state
+    np.testing.assert_allclose(teacher.diagnostics(state.params, actor, obs)["teacher_mean_distance"],
+                               np.sqrt(np.mean(np.square(teacher.student.actor_apply(actor, obs)))), rtol=1e-5)
     with pytest.raises(ValueError, match="unknown teacher 'nope'; valid teachers: independent, variance"):
         validate(tiny_config("meta", steps=300, **{"meta.teacher": "nope"}))
 

@@ -355,7 +355,8 @@ def _validate(config) -> None:
 
 
 CYCLE_METRICS = ("meta_reward", "r_hat_pi", "r_hat_lookahead", "teacher_log_std", "teacher_entropy",
-                 "teacher_student_distance", "meta_reward_sd_paired", "meta_reward_sd_unpaired")
+                 "teacher_student_distance", "teacher_mean_distance", "meta_reward_sd_paired",
+                 "meta_reward_sd_unpaired")
 
 strategy.register_explorer(
     NAME, lambda config: TeacherExplorer(config.meta), group=MetaConfig, group_defaults=_group_defaults,

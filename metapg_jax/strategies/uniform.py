@@ -32,9 +32,12 @@ class UniformTeacher(teacher.Teacher):
         return state
 
     def diagnostics(self, params, student_actor, obs_normalized) -> dict:
-        """U[-1, 1]'s log-std (log 1/sqrt(3)) and its entropy (log 2 per action dimension)."""
+        """U[-1, 1]'s log-std (log 1/sqrt(3)), its entropy (log 2 per action dimension) and its mean's (0)
+        RMS distance from the student's action."""
+        student = self.student.actor_apply(student_actor, obs_normalized)
         return {"teacher_log_std": jnp.asarray(-0.5 * math.log(3.0), jnp.float32),
-                "teacher_entropy": jnp.asarray(self.action_size * math.log(2.0), jnp.float32)}
+                "teacher_entropy": jnp.asarray(self.action_size * math.log(2.0), jnp.float32),
+                "teacher_mean_distance": jnp.sqrt(jnp.mean(jnp.square(student)))}
 
 
 teacher.register_design("uniform", lambda cfg, student, config: UniformTeacher(cfg, student),
