@@ -279,7 +279,8 @@ def markdown(report: dict) -> str:
              "Meta reward mean ± std: over the cycles; SNR = |mean| / std. Distance: "
              "the RMS teacher-student action distance on D0 (actions in [-1, 1]), mean ± std over seeds of each "
              "seed's mean; of the teacher's mean: the same for the mean of its action distribution (clipped to "
-             "[-1, 1]), its noise left out ('–': not recorded). Bandit: per seed the scale chosen most often and its share of the cycles.", "",
+             "[-1, 1]), its noise left out ('–': not recorded). Bandit: per seed the scale chosen most often and "
+             "its share of the cycles.", "",
              "| student | task | method | seeds | spread paired | spread unpaired | ratio | meta reward mean ± std | "
              "SNR | distance | of the teacher's mean | bandit: seeds whose favourite has > 1/2 | "
              "bandit: favourite scales (seeds) |",
