@@ -290,6 +290,12 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
     line = next(x for x in readme.splitlines() if x.startswith("| TD3 | TD3 (pink noise) |"))
     assert line.endswith(" | " + " / ".join(str(counts["td3/td3-pink"][v]) for v in stats.VERDICTS) + " |")
     assert "| verdicts (better / worse / equivalent / inconclusive) |" in readme
+    assert "`NOTES.md`" not in readme      # a hand-kept file is listed only where it exists
+    (results / "NOTES.md").write_text("# how the cells ran\n")
+    artefacts.build(str(runs), str(results), entries, ["hopper", "reacher", gym_task], anchors_path=str(anchors),
+                    plan={"name": "t", "students": ["td3", "sac"], "seeds": 4, "seed": 1000, "steps": 3000})
+    assert "| `NOTES.md` | how the cells ran, kept by hand" in (results / "README.md").read_text()
+    assert (results / "NOTES.md").read_text() == "# how the cells ran\n"
 
     # A baseline chosen in advance (TD3's pink noise): it is planned, Gaussian noise is not unless named, and the
     # verdicts and P(improvement) of TD3's other strategies are against it.

@@ -541,6 +541,13 @@ def verdict_counts(tables_: dict[str, list[dict]], entries: Sequence[Entry],
             out[e.key] = {v: said.count(v) for v in stats.VERDICTS}
     return out
 
+# Files of a results folder that no build writes, listed in its README when present.
+KEPT_FILES = {
+    "NOTES.md": "how the cells ran, kept by hand: their environment, cells that shared the CPU, records of more "
+                "or fewer than one call",
+    "packages.txt": "the Python environment the cells ran with (`pip freeze`)",
+}
+
 
 def _final_matrix(tables_: dict[str, list[dict]], entries: Sequence[Entry], tasks: Sequence[str]) -> list[str]:
     cell = lambda r: (tables.cell_text(r) + ("" if r["method"] == r["baseline"] else
@@ -589,6 +596,7 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
             lines.append(f"| `{f}` | the same as the task's table, machine-readable |")
         elif f in FILES:
             lines.append(f"| `{f}` | {FILES[f]} |")
+    lines += [f"| `{f}` | {text} |" for f, text in KEPT_FILES.items() if os.path.exists(os.path.join(out_dir, f))]
     lines.append("| `<student>/cells/<task>/<method>/` | the archived cells: config, metrics, summary, "
                  "`reproduce.json` (commands, commits, wall and CPU time), diffs of uncommitted changes |")
     lines += ["", "## Final return per task", "",
