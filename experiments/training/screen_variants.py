@@ -117,7 +117,7 @@ VARIANTS: dict[str, Variant] = {
                                          "one teacher step: there this is the update-ratio cell)",
         "The two changes that helped alone act on different parts of Algorithm 1 (how much the student trains per "
         "sample; whether the teacher's log-std collapses), so their gains add on HalfCheetah: above either alone "
-        "(2,955 and 3,372), with the log-std off its floor, where the update ratio alone left 6 of 8 seeds at it.",
+        "(2,955 and 3,372), with the log-std off its floor, where the update ratio alone left 3 of 8 seeds at it.",
         _combined(_ddpg_ratio, _one_step)),
     "schedule-frozen": Variant(
         "update ratio with a frozen teacher", "DDPG's update ratio and `meta.lr=0` (a control for the combination)",
