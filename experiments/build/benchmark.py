@@ -549,10 +549,11 @@ KEPT_FILES = {
 }
 
 
-def _final_matrix(tables_: dict[str, list[dict]], entries: Sequence[Entry], tasks: Sequence[str]) -> list[str]:
+def _final_matrix(tables_: dict[str, list[dict]], entries: Sequence[Entry], tasks: Sequence[str],
+                  counts: dict[str, dict[str, int]]) -> list[str]:
+    """The README's final-return table; ``counts``: ``verdict_counts`` of the same tables."""
     cell = lambda r: (tables.cell_text(r) + ("" if r["method"] == r["baseline"] else
                                              f" ({r['verdict']['verdict']})" if r["verdict"] else ""))
-    counts = verdict_counts(tables_, entries, tasks)
     lines = ["| student | strategy | " + " | ".join(task_name(t) for t in tasks) + " | verdicts ("
              + " / ".join(stats.VERDICTS) + ") |", "|---|---|" + "---|" * (len(tasks) + 1)]
     for i, e in enumerate(entries):
@@ -603,7 +604,7 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
               f"Mean ± std of the seeds' final returns ({stats.FINAL_DEFINITION}); in brackets the verdict against "
               "the student's baseline (" + _baselines_text(entries) + "; Holm-corrected within the student's family; "
               "details per task in `tasks/`); in the last column the number of tasks with each verdict.",
-              ""] + _final_matrix(tables_, entries, tasks)
+              ""] + _final_matrix(tables_, entries, tasks, manifest["verdict_counts"])
     lines += ["", "## Aggregate over tasks", ""]
     if rep is None:
         lines.append(f"Not built: {manifest['aggregate_not_built']}.")
