@@ -93,7 +93,8 @@ def report(grid: dict, anchors: dict[str, tuple[float, float]], scored=None,
         pairs = [(x, y) for x in teachers for y in noise] or [(x, y) for x in methods for y in methods if x != y]
     for x, y in pairs:
         point, lo, hi = stats.probability_of_improvement(scores[x], scores[y])
-        out["improvement"].append({"x": x, "y": y, "point": point, "lo": lo, "hi": hi})
+        out["improvement"].append({"x": x, "y": y, "point": point, "lo": lo, "hi": hi,
+                                   "per_task": stats.improvement_per_task(scores[x], scores[y])})
     return out
 
 
@@ -131,16 +132,22 @@ def markdown(rep: dict, title: str, labels: dict | None = None) -> str:
     # A report whose pairs name their reference (the benchmark's: its student's Gaussian noise, its best fixed
     # noise) says which reference each Y is.
     against = any("reference" in p for p in rep["improvement"])
+    # Reports written before the per-task terms existed have none: no column then.
+    per_task = all("per_task" in p for p in rep["improvement"])
     lines += ["", "## Probability of improvement", "",
               "P(X > Y): the chance that a seed of X ends above a seed of Y on a task drawn from the grid's tasks; "
-              "0.5 = neither tends to end higher. 95% stratified bootstrap interval in brackets.", "",
-              "| X | Y |" + (" Y is |" if against else "") + " P(X > Y) |", "|---|---|" + ("---|" if against else "")
-              + "---|"]
+              "0.5 = neither tends to end higher. 95% stratified bootstrap interval in brackets"
+              + ("; per task: the terms it averages, in the order of the tasks above (a difference of a few "
+                 "points where both end at a task's ceiling counts there as much as a large one)" if per_task else "")
+              + ".", "",
+              "| X | Y |" + (" Y is |" if against else "") + " P(X > Y) |" + (" per task |" if per_task else ""),
+              "|---|---|" + ("---|" if against else "") + "---|" + ("---|" if per_task else "")]
     if not rep["improvement"]:
-        lines.append("| (no pair to compare) | | " + ("| " if against else "") + "|")
+        lines.append("| (no pair to compare) | | " + ("| " if against else "") + "|" + (" |" if per_task else ""))
     for p in rep["improvement"]:
         lines.append(f"| {labels.get(p['x'], p['x'])} | {labels.get(p['y'], p['y'])} |"
-                     + (f" {p.get('reference', '')} |" if against else "") + f" {_interval(p)} |")
+                     + (f" {p.get('reference', '')} |" if against else "") + f" {_interval(p)} |"
+                     + (f" {', '.join(stats.fmt(v, 2) for v in p['per_task'])} |" if per_task else ""))
     return "\n".join(lines) + "\n"
 
 

@@ -45,8 +45,12 @@ def test_the_report_normalises_pools_the_common_tasks_and_compares_teachers_with
                                                               ("meta-independent", "ddpg-normal")]
     better = rep["improvement"][0]  # the means are ten stds and more apart on both tasks
     assert better["point"] == 1.0 and better["lo"] <= better["point"] <= better["hi"]
+    assert better["per_task"] == [1.0, 1.0]
     md = aggregate.markdown(rep, "paper preset")
-    assert "| Meta (independent) | DDPG (param noise) | 1.00 [1.00, 1.00] |" in md
+    assert "| Meta (independent) | DDPG (param noise) | 1.00 [1.00, 1.00] | 1.00, 1.00 |" in md
+    # a report written before the per-task terms existed still renders, without their column
+    old = {**rep, "improvement": [{k: v for k, v in p.items() if k != "per_task"} for p in rep["improvement"]]}
+    assert "| Meta (independent) | DDPG (param noise) | 1.00 [1.00, 1.00] |\n" in aggregate.markdown(old, "paper")
     assert "Left out: Hopper (no finished cell for Meta (independent))." in md
     assert "Methods of the grid without a finished cell: Meta (variance)." in md
     with pytest.raises(ValueError, match="no task has a finished cell for every method"):

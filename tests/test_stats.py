@@ -62,6 +62,11 @@ def test_the_estimators_follow_their_definitions():
     x, y = np.array([1.0, 2.0, 3.0]), np.array([2.0, 0.0])
     u = sps.mannwhitneyu(x, y, alternative="greater").statistic
     assert stats.probability_of_improvement([x], [y])[0] == pytest.approx(u / 6) == pytest.approx(4.5 / 6)
+    # per task, the terms of the average: a tie at a ceiling counts 1/2 on its own task
+    per_task = stats.improvement_per_task([x, np.full(3, 9.0)], [y, np.full(4, 9.0)])
+    assert per_task == pytest.approx([4.5 / 6, 0.5])
+    assert np.mean(per_task) == pytest.approx(stats.probability_of_improvement([x, np.full(3, 9.0)],
+                                                                              [y, np.full(4, 9.0)])[0])
     np.testing.assert_allclose(stats.normalise([-10.0, 0.0, 30.0], -10.0, 30.0), [0.0, 0.25, 1.0])
     for low, high in ((2.0, 2.0), (3.0, 2.0), (0.0, math.inf)):  # equal, reversed, infinite
         with pytest.raises(ValueError, match="reference above the random policy"):

@@ -266,7 +266,8 @@ def improvement(scores: dict, entries: Sequence[Entry], present: Sequence[str], 
             if e.key not in present or y not in present or y == e.key or (reference != "baseline" and y == base):
                 continue
             point, lo, hi = stats.probability_of_improvement(scores[e.key], scores[y])
-            out.append({"x": e.key, "y": y, "reference": reference, "point": point, "lo": lo, "hi": hi})
+            out.append({"x": e.key, "y": y, "reference": reference, "point": point, "lo": lo, "hi": hi,
+                        "per_task": stats.improvement_per_task(scores[e.key], scores[y])})
     return out
 
 

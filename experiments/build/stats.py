@@ -260,6 +260,14 @@ def probability_of_improvement(x_per_task: Sequence[Sequence[float]], y_per_task
     return (point, *_percentiles(replicates, level))
 
 
+def improvement_per_task(x_per_task: Sequence[Sequence[float]], y_per_task: Sequence[Sequence[float]]) -> list[float]:
+    """P(a seed of X scores above a seed of Y), ties 1/2, on each task: the terms whose average is
+    ``probability_of_improvement``'s point. Shows which tasks carry it (e.g. differences of a few points at a
+    task's ceiling count as much as large ones)."""
+    xs, ys = _check_tasks(x_per_task, "probability of improvement"), _check_tasks(y_per_task, "probability of improvement")
+    return [float(_p_improvement(x, y)) for x, y in zip(xs, ys)]
+
+
 def performance_profile(per_task: Sequence[Sequence[float]], taus: np.ndarray, reps: int = BOOTSTRAP_REPS,
                         seed: int = BOOTSTRAP_SEED, level: float = 0.95) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(fraction, lo, hi) at each threshold in ``taus``: the fraction of seeds, pooled over the tasks, whose
