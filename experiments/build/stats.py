@@ -334,8 +334,9 @@ VERDICT_DEFINITION = (
     "comparison of the table against one baseline); 'better' / 'worse' where the corrected p < 0.05; "
     "'equivalent' where the two one-sided Welch tests (TOST) of a difference within ±{margin:.0%} of the "
     "task's normalised range (reference − random policy's return, results/normalisation.json), Holm-corrected "
-    "in the same family, give p < 0.05; otherwise 'inconclusive' (read the CI: with 8 seeds a test has 80% "
-    "power only for differences of about 1.5 standard deviations)").format(margin=EQUIVALENCE_MARGIN)
+    "in the same family, give p < 0.05; otherwise 'inconclusive' (read the CI: before the correction, a test "
+    "of 8 seeds against 8 has 80% power only for differences of about 1.5 standard deviations, of 10 against "
+    "10 about 1.3)").format(margin=EQUIVALENCE_MARGIN)
 
 
 def judge_family(pairs: Sequence[tuple[Sequence[float], Sequence[float], float | None]]) -> list[dict]:
