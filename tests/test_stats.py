@@ -91,6 +91,8 @@ def test_the_bootstrap_is_seeded_stratified_and_takes_tasks_of_any_seed_count():
             stats.aggregate_interval(bad, stats.iqm)
     with pytest.raises(ValueError, match="2 tasks for X, 1 for Y"):
         stats.probability_of_improvement(constant, constant[:1])
+    with pytest.raises(ValueError, match="2 tasks for X, 1 for Y"):
+        stats.improvement_per_task(constant, constant[:1])
 
 
 def test_holm_on_a_textbook_example():

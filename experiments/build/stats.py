@@ -251,9 +251,7 @@ def probability_of_improvement(x_per_task: Sequence[Sequence[float]], y_per_task
     ``probability_of_improvement``: Mann-Whitney U / (n·m) per task). Scores need not be normalised: the
     statistic only compares X and Y within a task. X's and Y's seeds are resampled independently per task."""
     xs, ys = _check_tasks(x_per_task, "probability of improvement"), _check_tasks(y_per_task, "probability of improvement")
-    if len(xs) != len(ys):
-        raise ValueError(f"probability of improvement: {len(xs)} tasks for X, {len(ys)} for Y")
-    point = float(np.mean([_p_improvement(x, y) for x, y in zip(xs, ys)]))
+    point = float(np.mean(improvement_per_task(xs, ys)))
     rng = np.random.default_rng(seed)
     bx, by = _resample(rng, xs, reps), _resample(rng, ys, reps)
     replicates = np.mean([_p_improvement(x, y) for x, y in zip(bx, by)], axis=0)
@@ -265,6 +263,8 @@ def improvement_per_task(x_per_task: Sequence[Sequence[float]], y_per_task: Sequ
     ``probability_of_improvement``'s point. Shows which tasks carry it (e.g. differences of a few points at a
     task's ceiling count as much as large ones)."""
     xs, ys = _check_tasks(x_per_task, "probability of improvement"), _check_tasks(y_per_task, "probability of improvement")
+    if len(xs) != len(ys):
+        raise ValueError(f"probability of improvement: {len(xs)} tasks for X, {len(ys)} for Y")
     return [float(_p_improvement(x, y)) for x, y in zip(xs, ys)]
 
 
