@@ -19,6 +19,11 @@ must be written, and nothing else.
 
 Results built from run folders (``runs/reproduce``) carry those folders' paths: rebuild them from the archive
 (``--runs-dir runs/archived-only``) before committing them, as this test expects.
+
+The exploration benchmark's grids (``results/exploration``, ``results/first-look`` and the learned-exploration
+screens) are checked the same way through ``experiments.build.benchmark.build``, with the plan (entries, tasks,
+options) their manifest recorded; build them with ``python -m experiments.benchmark ... --artefacts-only`` when
+no run folder of theirs exists, so that every cell is read from the archive.
 """
 
 import copy
@@ -80,3 +85,50 @@ def test_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, 
         assert rebuilt == want, f"{folder}/{name} differs from the rebuild, {_first_difference(rebuilt, want)}"
         compared += 1
     assert compared >= 9  # table2 md/json/csv, steps_to_threshold csv/md, comparisons md/json, README, manifest
+
+
+# Grids built by ``python -m experiments.benchmark ... --artefacts-only`` (each one's ``--results-dir``). Their
+# manifests hold the plan (students, entries, baselines, tasks, options) the build used.
+BENCHMARK_BUILDS = ("results/exploration", "results/first-look", "results/learned/screen",
+                    "results/learned/screen-sac")
+
+
+@pytest.mark.parametrize("folder", BENCHMARK_BUILDS, ids=["exploration", "first-look", "screen", "screen-sac"])
+def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
+    from experiments.build import benchmark as bench_artefacts
+
+    committed = os.path.join(ROOT, folder)
+    with open(os.path.join(committed, "manifest.json")) as f:
+        stored = json.load(f)
+    build, plan = stored["build"], dict(stored["benchmark"])
+    extra = {k: build[k] for k in ("benchmark_wall_seconds",) if k in build}
+    entries = [bench_artefacts.Entry(**e) for e in plan.pop("entries")]
+    tasks = plan.pop("tasks")
+    assert all(c["path"].startswith(f"{folder}/") for c in stored["cells"]), \
+        f"{folder} was not built from its archive alone: rebuild it with --artefacts-only"
+    for student in stored["benchmark"]["students"]:
+        shutil.copytree(os.path.join(committed, student, "cells"), tmp_path / folder / student / "cells")
+    for name in os.listdir(committed):  # files the build does not write (NOTES.md, packages.txt, diagnostics): the
+        path = os.path.join(committed, name)  # README lists those present
+        if os.path.isfile(path) and name not in stored["files"]:
+            shutil.copy(path, tmp_path / folder / name)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(cells, "build_info", lambda runs_dir: {k: copy.deepcopy(v) for k, v in build.items()
+                                                                if k not in extra})
+
+    manifest = bench_artefacts.build(build["runs_dir"], folder, entries, tasks, plan=plan, extra_provenance=extra)
+
+    assert not (tmp_path / build["runs_dir"]).exists()
+    assert manifest["files"] == stored["files"]
+    out = tmp_path / folder
+    compared = 0
+    for name in stored["files"]:
+        rebuilt = (out / name).read_bytes()
+        if name.endswith(".png"):
+            assert rebuilt[:8] == b"\x89PNG\r\n\x1a\n", name
+            continue
+        with open(os.path.join(committed, name), "rb") as f:
+            want = f.read()
+        assert rebuilt == want, f"{folder}/{name} differs from the rebuild, {_first_difference(rebuilt, want)}"
+        compared += 1
+    assert compared >= 2 + 2 * len(tasks)  # a table (md, json) per task, cost, README, manifest
