@@ -5,6 +5,7 @@ import gzip
 import json
 import math
 import os
+import shutil
 
 import numpy as np
 import pytest
@@ -155,3 +156,64 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
     assert "| H2 | bandit over noise scales beats control: D0 with noise 0.1 | Hopper |" in md
     assert "| refuted |" in md and "| not run: control-frozen |" in md and "(H4): a family of its own" in md
     assert learned.main(["--results-dir", str(tmp_path / "res"), "--anchors", str(tmp_path / "none.json")]) == 2
+
+
+def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path):
+    """--goal on a fabricated judgement (TD3, baseline chosen in advance: parameter noise): a variant far above it
+    on every task meets the goal; one far above it on two tasks of three (P's interval above 0.5) but worse on the
+    third does not; with a cell missing the goal is pending; the grid's plan leaves the screen's controls out of
+    the diagnostics."""
+    from experiments.build import benchmark as artefacts, grid
+    from tests.helpers import fabricate_run
+
+    rng = np.random.default_rng(5)
+    steps = np.arange(1, 11) * 300
+    runs, res = tmp_path / "runs", tmp_path / "res"
+    tasks = {"hopper": (0.0, 1000.0), "reacher": (-40.0, -4.0), "pendulum": (-1200.0, -150.0)}  # anchors
+    # Final returns as a fraction of each task's range: the baseline at 0.4, the paired teacher at 0.8 everywhere,
+    # the residual teacher at 0.8 on Hopper and Pendulum and 0.1 on Reacher.
+    level = {"td3-paramnoise": {}, "learned-paired": {}, "learned-residual": {"hopper": 0.8, "pendulum": 0.8,
+                                                                              "reacher": 0.1}}
+    for task, (lo, hi) in tasks.items():
+        for m, where in level.items():
+            frac = where.get(task, 0.4 if m == "td3-paramnoise" else 0.8)
+            values = lo + (hi - lo) * rng.normal(frac, 0.01, (8, 10))
+            fabricate_run(str(runs / "td3" / "paper" / grid.task_folder(task) / m), task, m, values, steps)
+    anchors = tmp_path / "anchors.json"
+    anchors.write_text(json.dumps({"tasks": {t: {"random_return": lo, "reference_return": hi}
+                                             for t, (lo, hi) in tasks.items()}}))
+    entries = artefacts.entries_for(["td3"], ["learned-paired", "learned-residual"], {"td3": "td3-paramnoise"})
+    artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors),
+                    plan={"name": "j", "students": ["td3"], "seeds": 8, "seed": 2000, "steps": 3000})
+    argv = ["--results-dir", str(res), "--tasks", ",".join(tasks), "--anchors", str(anchors), "--goal"]
+    assert learned.main(argv) == 0
+    report = json.loads((res / "diagnostics.json").read_text())
+    g = report["goal"]["td3"]
+    assert g["baseline"] == "td3-paramnoise"
+    rows = {r["method"]: r for r in g["variants"]}
+    assert set(rows) == {"learned-paired", "learned-residual"}
+    agg = {(p["x"], p["y"]): p for p in json.loads((res / "aggregate.json").read_text())["improvement"]}
+    paired = agg[("td3/learned-paired", "td3/td3-paramnoise")]
+    assert rows["learned-paired"]["p"] == paired["point"] and rows["learned-paired"]["lo"] == paired["lo"] > 0.5
+    assert rows["learned-paired"]["outcome"] == "met" and rows["learned-paired"]["better"] == list(tasks)
+    residual = agg[("td3/learned-residual", "td3/td3-paramnoise")]
+    assert rows["learned-residual"]["lo"] == residual["lo"] > 0.5                # P = (1 + 0 + 1) / 3
+    assert rows["learned-residual"]["worse"] == ["reacher"] and rows["learned-residual"]["outcome"] == "not met"
+    # The plan holds no control: none is listed as not run, and no comparison names one.
+    assert {c["method"] for c in report["cells"]} == {"learned-paired", "learned-residual"}
+    assert report["predictions"]["td3"]["comparisons"] == [] and report["predictions"]["td3"]["controls"] == []
+    md = (res / "diagnostics.md").read_text()
+    assert "## The judgement's goal" in md and "| TD3 | Meta (paired reward) | TD3 (param noise) | " in md
+    assert "control:" not in md
+
+    # A planned cell without a finished run: pending, whatever the others say.
+    shutil.rmtree(res / "td3" / "cells" / "reacher" / "learned-paired")
+    shutil.rmtree(runs / "td3" / "paper" / "reacher" / "learned-paired")
+    artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors),
+                    plan={"name": "j", "students": ["td3"], "seeds": 8, "seed": 2000, "steps": 3000})
+    assert learned.main(argv) == 0
+    rows = {r["method"]: r for r in json.loads((res / "diagnostics.json").read_text())["goal"]["td3"]["variants"]}
+    assert rows["learned-paired"]["outcome"].startswith("pending")
+    # Without the benchmark's manifest there is no baseline to judge against: a one-line error.
+    (res / "manifest.json").unlink()
+    assert learned.main(argv) == 2

@@ -2,6 +2,8 @@
 predicts, measured from the archived per-cycle metrics (``cells.ARCHIVE_CYCLES``) of a benchmark's finished cells.
 
     python -m experiments.build.learned --results-dir results/learned/screen --tasks hopper,halfcheetah
+    python -m experiments.build.learned --results-dir results/learned/judgement --students td3,sac --goal \
+        --tasks inverted_double_pendulum,inverted_pendulum,hopper,pendulum,halfcheetah,reacher
 
 Per (student, task, method) of ``grid.LEARNED_METHODS`` with a finished archived cell, over each seed's last
 ``LAST`` cycles (all of them if it has fewer), pooled over seeds unless said otherwise:
@@ -32,6 +34,16 @@ Then each hypothesis' predictions, fixed before the screen ran (results/learned/
   such metric);
 * what each variant adds over each control (H4): every variant against every control on every task, except the
   pairs ``COMPARISONS`` already judges, a second family corrected within itself.
+
+Where the folder holds the benchmark's ``manifest.json``, only what its plan holds is read: a cell, prediction or
+comparison that names a strategy the grid never planned (the screen's controls in the judgement) is left out, not
+listed as not run.
+
+With ``--goal`` (the judgement on fresh seeds, results/learned/README.md): per student, each variant's probability
+of improvement over the student's baseline (the grid's ``--baseline``: the best fixed strategy chosen in advance)
+with its 95% stratified bootstrap CI, from the benchmark's ``aggregate.json``, and its per-task verdicts against
+that baseline (Holm-corrected within each task, ``tasks/<task>.json``). The goal (``GOAL``) is met when the CI's
+lower bound is above 0.5 and no task is worse; not met otherwise; pending while a planned cell is not finished.
 
 Writes ``<results-dir>/diagnostics.md`` and ``diagnostics.json``. A cell that is not finished, or whose cycles are
 not archived, is listed as such: nothing is estimated.
@@ -75,6 +87,23 @@ DIAGNOSTIC_PREDICTIONS = (
     ("H3", "learned-paired", "paired / unpaired RMS spread of the meta reward at most 0.5",
      lambda d: d["sd_ratio"], lambda v: v <= 0.5),
 )
+
+
+GOAL = ("P(variant > best fixed) with its 95% CI's lower bound above 0.5, and no task significantly worse after "
+        "correction")
+
+
+def planned(results_dir: str) -> dict[str, set[str]] | None:
+    """{student: the methods the grid planned} from the benchmark's ``manifest.json``; None without one."""
+    path = os.path.join(results_dir, "manifest.json")
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        entries = json.load(f).get("benchmark", {}).get("entries", [])
+    out: dict[str, set[str]] = {}
+    for e in entries:
+        out.setdefault(e["student"], set()).add(e["method"])
+    return out
 
 
 def read_cycles(path: str) -> dict[int, list[dict]]:
@@ -180,10 +209,11 @@ def judged(results_dir: str, student: str, tasks: list[str], pairs: list[tuple[s
     return rows
 
 
-def predictions(results_dir: str, student: str, tasks: list[str], cells: list[dict], anchors: dict | None) -> dict:
+def predictions(results_dir: str, student: str, tasks: list[str], cells: list[dict], anchors: dict | None,
+                plan: set[str] | None = None) -> dict:
     """The hypotheses' predictions on ``tasks`` (module docstring): {"comparisons": [...], "diagnostics": [...],
-    "controls": [...]}."""
-    own = (*STRATEGIES.get(student, ()), *LEARNED.get(student, ()))
+    "controls": [...]}; ``plan``: the student's planned methods (``planned``), None for every strategy of it."""
+    own = [m for m in (*STRATEGIES.get(student, ()), *LEARNED.get(student, ())) if plan is None or m in plan]
     mine = [c for c in COMPARISONS if c[1] in own and c[2] in own]
     comparisons = judged(results_dir, student, tasks, [(a, b) for _, a, b, _ in mine], anchors)
     kinds = {(a, b): (h, kind) for h, a, b, kind in mine}
@@ -194,6 +224,8 @@ def predictions(results_dir: str, student: str, tasks: list[str], cells: list[di
     by_cell = {(c["task"], c["method"]): c for c in cells if c["student"] == student}
     diagnostics = []
     for h, method, what, value, test in DIAGNOSTIC_PREDICTIONS:
+        if method not in own:
+            continue
         for task in tasks:
             d = by_cell.get((task, method), {"state": "not run"})
             v = value(d) if d["state"] == "finished" else None
@@ -203,22 +235,79 @@ def predictions(results_dir: str, student: str, tasks: list[str], cells: list[di
                                 else "met" if test(v) else "not met"})
     judged_pairs = {(a, b) for _, a, b, _ in mine}
     controls = judged(results_dir, student, tasks, [(v, c) for v in VARIANTS for c in CONTROLS
-                                                    if (v, c) not in judged_pairs], anchors)
+                                                    if v in own and c in own and (v, c) not in judged_pairs], anchors)
     return {"comparisons": comparisons, "diagnostics": diagnostics, "controls": controls}
 
 
+def goal(results_dir: str, students: list[str], tasks: list[str]) -> dict:
+    """The judgement's goal (module docstring) from the benchmark's artefacts in ``results_dir``: {student:
+    {"baseline": method, "variants": [{method, p, lo, hi, per_task, verdicts: {task: verdict}, worse, better,
+    outcome}]}}. ``ValueError`` (one line) when the grid has no benchmark manifest or the student is not in it."""
+    plan = planned(results_dir)
+    if plan is None:
+        raise ValueError(f"--goal needs the benchmark's manifest.json in {results_dir}")
+    with open(os.path.join(results_dir, "manifest.json")) as f:
+        baselines = json.load(f)["benchmark"]["baselines"]
+    agg_path = os.path.join(results_dir, "aggregate.json")
+    improvement, agg_tasks = [], []
+    if os.path.exists(agg_path):
+        with open(agg_path) as f:
+            agg = json.load(f)
+        improvement, agg_tasks = agg.get("improvement", []), agg.get("tasks", [])
+    verdicts: dict[tuple[str, str, str], str] = {}
+    for task in tasks:
+        path = os.path.join(results_dir, "tasks", f"{task_folder(task)}.json")
+        if os.path.exists(path):
+            with open(path) as f:
+                for r in json.load(f)["rows"]:
+                    if r.get("verdict"):
+                        verdicts[(r["student"], task, r["method"])] = r["verdict"]["verdict"]
+    out = {}
+    for student in students:
+        if student not in plan:
+            raise ValueError(f"--goal: student {student!r} is not in the grid's plan ({', '.join(plan)})")
+        base = baselines[student]
+        rows = []
+        for method in VARIANTS:
+            if method not in plan[student]:
+                continue
+            done = all(final_returns(results_dir, student, t, m) is not None for t in tasks for m in (method, base))
+            p = next((r for r in improvement if r["x"] == f"{student}/{method}" and r["y"] == f"{student}/{base}"),
+                     None)
+            v = {t: verdicts.get((student, t, method)) for t in tasks}
+            worse, better = [t for t in tasks if v[t] == "worse"], [t for t in tasks if v[t] == "better"]
+            row = {"method": method, "verdicts": v, "worse": worse, "better": better,
+                   **({"p": p["point"], "lo": p["lo"], "hi": p["hi"],
+                       "per_task": dict(zip(agg_tasks, p["per_task"]))} if p else {})}
+            if not done or p is None or None in v.values() or set(agg_tasks) != set(tasks):
+                row["outcome"] = "pending: not every planned cell is finished"
+            else:
+                row["outcome"] = "met" if p["lo"] > 0.5 and not worse else "not met"
+            rows.append(row)
+        out[student] = {"baseline": base, "variants": rows}
+    return out
+
+
 def build(results_dir: str, tasks: list[str], students: list[str], last: int = LAST,
-          anchors: dict | None = None) -> dict:
+          anchors: dict | None = None, with_goal: bool = False) -> dict:
     """{"cells": [{student, task, method, **cell_diagnostics}], "predictions": {student: ``predictions``},
-    "last": last, "built": provenance}; ``anchors``: the tasks' normalisation anchors (equivalence margins)."""
+    "last": last, "built": provenance[, "goal": ``goal``]}; ``anchors``: the tasks' normalisation anchors
+    (equivalence margins). Only the methods the grid planned where it has a manifest (``planned``)."""
+    plan = planned(results_dir)
+    mine = {s: None if plan is None else plan.get(s, set()) for s in students}
     cells = []
     for student in students:
         for task in tasks:
             for method in LEARNED[student]:
+                if mine[student] is not None and method not in mine[student]:
+                    continue
                 d = os.path.join(results_dir, student, "cells", task_folder(task), method)
                 cells.append({"student": student, "task": task, "method": method, **cell_diagnostics(d, last)})
-    return {"last": last, "cells": cells, "built": build_info(results_dir),
-            "predictions": {s: predictions(results_dir, s, tasks, cells, anchors) for s in students}}
+    report = {"last": last, "cells": cells, "built": build_info(results_dir),
+              "predictions": {s: predictions(results_dir, s, tasks, cells, anchors, mine[s]) for s in students}}
+    if with_goal:
+        report["goal"] = goal(results_dir, students, tasks)
+    return report
 
 
 def _f(x, digits=2) -> str:
@@ -241,30 +330,53 @@ def _verdict_cells(row: dict) -> str:
 def _predictions_markdown(student: str, pred: dict, anchors: str | None) -> list[str]:
     n = sum(r["state"] == "compared" for r in pred["comparisons"])
     m = sum(r["state"] == "compared" for r in pred["controls"])
-    lines = ["", f"## {student}: the hypotheses' predictions", "",
-             f"Final returns (mean of each seed's last 10% of evaluations): Welch tests, Holm-corrected over the "
+    lines = ["", f"## {student}: the hypotheses' predictions"]
+    if pred["comparisons"]:
+        lines += ["", f"Final returns (mean of each seed's last 10% of evaluations): Welch tests, Holm-corrected over the "
              f"{n} comparisons made; 'equivalent' only by the TOST of ±{stats.EQUIVALENCE_MARGIN:.0%} of the "
              "task's normalisation range (" + (f"`{anchors}`; " if anchors else "no anchors: ") + "a task without "
              "anchors is never equivalent). 'beats' is met by 'better' and "
              "refuted by 'worse' or 'equivalent'; 'not worse' is met by 'better' or 'equivalent' and refuted by "
-             "'worse'; otherwise it is inconclusive.", "",
-             "| hypothesis | prediction | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict | "
-             "outcome |",
-             "|---|---|---|---|---|---|---|---|---|"]
-    for r in pred["comparisons"]:
-        lines.append(f"| {r['hypothesis']} | {_name(r['a'])} {r['prediction']} {_name(r['b'])} | "
-                     f"{task_name(r['task'])} | {_verdict_cells(r)} | {r['outcome']} |")
-    lines += ["", "| hypothesis | prediction (diagnostics) | method | task | measured | outcome |",
-              "|---|---|---|---|---|---|"]
-    for r in pred["diagnostics"]:
-        lines.append(f"| {r['hypothesis']} | {r['prediction']} | {_name(r['method'])} | {task_name(r['task'])} | "
-                     f"{_f(r['value'])} | {r['outcome']} |")
-    lines += ["", f"What each variant adds over each control (H4): a family of its own, Holm-corrected over its {m} "
-              "comparisons made (the pairs above are judged there only).", "",
-              "| variant | control | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict |",
-              "|---|---|---|---|---|---|---|---|"]
-    for r in pred["controls"]:
-        lines.append(f"| {_name(r['a'])} | {_name(r['b'])} | {task_name(r['task'])} | {_verdict_cells(r)} |")
+                  "'worse'; otherwise it is inconclusive.", "",
+                  "| hypothesis | prediction | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict | "
+                  "outcome |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for r in pred["comparisons"]:
+            lines.append(f"| {r['hypothesis']} | {_name(r['a'])} {r['prediction']} {_name(r['b'])} | "
+                         f"{task_name(r['task'])} | {_verdict_cells(r)} | {r['outcome']} |")
+    if pred["diagnostics"]:
+        lines += ["", "| hypothesis | prediction (diagnostics) | method | task | measured | outcome |",
+                  "|---|---|---|---|---|---|"]
+        for r in pred["diagnostics"]:
+            lines.append(f"| {r['hypothesis']} | {r['prediction']} | {_name(r['method'])} | "
+                         f"{task_name(r['task'])} | {_f(r['value'])} | {r['outcome']} |")
+    if pred["controls"]:
+        lines += ["", f"What each variant adds over each control (H4): a family of its own, Holm-corrected over its "
+                  f"{m} comparisons made (the pairs above are judged there only).", "",
+                  "| variant | control | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict |",
+                  "|---|---|---|---|---|---|---|---|"]
+        for r in pred["controls"]:
+            lines.append(f"| {_name(r['a'])} | {_name(r['b'])} | {task_name(r['task'])} | {_verdict_cells(r)} |")
+    if len(lines) == 2:
+        lines += ["", "None: the grid planned none of the strategies the predictions name."]
+    return lines
+
+
+def _goal_markdown(report: dict) -> list[str]:
+    lines = ["", "## The judgement's goal", "",
+             f"Goal: {GOAL}. P(X > Y): the benchmark's probability of improvement over the tasks (`aggregate.json`, "
+             "95% stratified bootstrap CI); verdicts: each task's, against the student's baseline, Holm-corrected "
+             "within the task (`tasks/<task>.json`).", "",
+             "| student | variant | baseline | P(variant > baseline) [95% CI] | per task | worse on | better on | "
+             "goal |",
+             "|---|---|---|---|---|---|---|---|"]
+    for student, g in report["goal"].items():
+        for r in g["variants"]:
+            p = (f"{r['p']:.2f} [{r['lo']:.2f}, {r['hi']:.2f}]" if "p" in r else "–")
+            per = ", ".join(f"{task_name(t)} {x:.2f}" for t, x in r["per_task"].items()) if "p" in r else "–"
+            names = lambda ts: ", ".join(task_name(t) for t in ts) or "none"
+            lines.append(f"| {STUDENT_NAMES.get(student, student)} | {_name(r['method'])} | {_name(g['baseline'])} | "
+                         f"{p} | {per} | {names(r['worse'])} | {names(r['better'])} | {r['outcome']} |")
     return lines
 
 
@@ -299,6 +411,8 @@ def markdown(report: dict) -> str:
                         f"{_f(c['mean_distance_mean'])} ± {_f(c['mean_distance_std'])}") + " | "
                      + (f"{b['seeds_over_half']} of {c['seeds']} | "
                         + ", ".join(f"{k} ({v})" for k, v in b["favourite_counts"].items()) + " |" if b else "– | – |"))
+    if "goal" in report:
+        lines += _goal_markdown(report)
     for student, pred in report.get("predictions", {}).items():
         lines += _predictions_markdown(STUDENT_NAMES.get(student, student), pred, report.get("anchors"))
     b = report["built"]
@@ -314,6 +428,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tasks", default="hopper,halfcheetah", help="comma-separated tasks (default hopper,halfcheetah)")
     p.add_argument("--students", default="td3", help=f"comma-separated students of {', '.join(LEARNED)} (default td3)")
     p.add_argument("--last", type=int, default=LAST, help=f"cycles per seed at the end of training (default {LAST})")
+    p.add_argument("--goal", action="store_true",
+                   help="also judge the judgement's goal against each student's baseline (module docstring)")
     p.add_argument("--anchors", default=None,
                    help="normalisation anchors of the equivalence margins (default results/normalisation.json; "
                         "without them nothing is judged equivalent)")
@@ -335,7 +451,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     anchors_path = a.anchors or normalisation.DEFAULT_OUT
     anchors = normalisation.load(anchors_path) if os.path.exists(anchors_path) else None
-    report = build(a.results_dir, tasks, students, a.last, anchors)
+    try:
+        report = build(a.results_dir, tasks, students, a.last, anchors, with_goal=a.goal)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
     report["anchors"] = os.path.relpath(anchors_path) if anchors is not None else None
     with open(os.path.join(a.results_dir, "diagnostics.json"), "w") as f:
         json.dump(report, f, indent=1)
