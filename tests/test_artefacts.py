@@ -104,14 +104,15 @@ def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, 
     extra = {k: build[k] for k in ("benchmark_wall_seconds",) if k in build}
     entries = [bench_artefacts.Entry(**e) for e in plan.pop("entries")]
     tasks = plan.pop("tasks")
-    assert all(c["path"].startswith(f"{folder}/") for c in stored["cells"]), \
+    assert all(c["path"].startswith(f"{folder}/{c['student']}/cells/") for c in stored["cells"]), \
         f"{folder} was not built from its archive alone: rebuild it with --artefacts-only"
-    for student in stored["benchmark"]["students"]:
+    students = stored["benchmark"]["students"]
+    for student in students:
         shutil.copytree(os.path.join(committed, student, "cells"), tmp_path / folder / student / "cells")
-    for name in os.listdir(committed):  # files the build does not write (NOTES.md, packages.txt, diagnostics): the
-        path = os.path.join(committed, name)  # README lists those present
-        if os.path.isfile(path) and name not in stored["files"]:
-            shutil.copy(path, tmp_path / folder / name)
+    kept = [name for name in os.listdir(committed)  # files the build does not write (NOTES.md, packages.txt,
+            if os.path.isfile(os.path.join(committed, name)) and name not in stored["files"]]  # diagnostics)
+    for name in kept:                              # the README lists those present
+        shutil.copy(os.path.join(committed, name), tmp_path / folder / name)
     monkeypatch.chdir(tmp_path)
     monkeypatch.setattr(cells, "build_info", lambda runs_dir: {k: copy.deepcopy(v) for k, v in build.items()
                                                                 if k not in extra})
@@ -121,6 +122,9 @@ def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, 
     assert not (tmp_path / build["runs_dir"]).exists()
     assert manifest["files"] == stored["files"]
     out = tmp_path / folder
+    written = {str(p.relative_to(out)) for p in out.rglob("*")
+               if p.is_file() and p.relative_to(out).parts[0] not in students}
+    assert written == set(stored["files"]) | set(kept)
     compared = 0
     for name in stored["files"]:
         rebuilt = (out / name).read_bytes()
@@ -131,4 +135,4 @@ def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, 
             want = f.read()
         assert rebuilt == want, f"{folder}/{name} differs from the rebuild, {_first_difference(rebuilt, want)}"
         compared += 1
-    assert compared >= 2 + 2 * len(tasks)  # a table (md, json) per task, cost, README, manifest
+    assert compared >= 3 * len(tasks) + 4  # per task md, json, per-seed csv; cost md and json, README, manifest

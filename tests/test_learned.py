@@ -158,11 +158,11 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
     assert learned.main(["--results-dir", str(tmp_path / "res"), "--anchors", str(tmp_path / "none.json")]) == 2
 
 
-def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path):
+def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path, capsys):
     """--goal on a fabricated judgement (TD3, baseline chosen in advance: parameter noise): a variant far above it
     on every task meets the goal; one far above it on two tasks of three (P's interval above 0.5) but worse on the
-    third does not; with a cell missing the goal is pending; the grid's plan leaves the screen's controls out of
-    the diagnostics."""
+    third does not, nor does one no different from it (never worse, P's interval around 0.5); with a cell not run
+    the goal is pending and says why; the grid's plan leaves the screen's controls out of the diagnostics."""
     from experiments.build import benchmark as artefacts, grid
     from tests.helpers import fabricate_run
 
@@ -171,49 +171,57 @@ def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path):
     runs, res = tmp_path / "runs", tmp_path / "res"
     tasks = {"hopper": (0.0, 1000.0), "reacher": (-40.0, -4.0), "pendulum": (-1200.0, -150.0)}  # anchors
     # Final returns as a fraction of each task's range: the baseline at 0.4, the paired teacher at 0.8 everywhere,
-    # the residual teacher at 0.8 on Hopper and Pendulum and 0.1 on Reacher.
+    # the residual teacher at 0.8 on Hopper and Pendulum and 0.1 on Reacher, the bandit at 0.4.
     level = {"td3-paramnoise": {}, "learned-paired": {}, "learned-residual": {"hopper": 0.8, "pendulum": 0.8,
-                                                                              "reacher": 0.1}}
+                                                                              "reacher": 0.1},
+             "learned-bandit": {}}
     for task, (lo, hi) in tasks.items():
         for m, where in level.items():
-            frac = where.get(task, 0.4 if m == "td3-paramnoise" else 0.8)
+            frac = where.get(task, 0.8 if m == "learned-paired" else 0.4)
             values = lo + (hi - lo) * rng.normal(frac, 0.01, (8, 10))
             fabricate_run(str(runs / "td3" / "paper" / grid.task_folder(task) / m), task, m, values, steps)
     anchors = tmp_path / "anchors.json"
     anchors.write_text(json.dumps({"tasks": {t: {"random_return": lo, "reference_return": hi}
                                              for t, (lo, hi) in tasks.items()}}))
-    entries = artefacts.entries_for(["td3"], ["learned-paired", "learned-residual"], {"td3": "td3-paramnoise"})
-    artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors),
-                    plan={"name": "j", "students": ["td3"], "seeds": 8, "seed": 2000, "steps": 3000})
-    argv = ["--results-dir", str(res), "--tasks", ",".join(tasks), "--anchors", str(anchors), "--goal"]
-    assert learned.main(argv) == 0
+    entries = artefacts.entries_for(["td3"], ["learned-paired", "learned-residual", "learned-bandit"],
+                                    {"td3": "td3-paramnoise"})
+    plan = {"name": "j", "students": ["td3"], "seeds": 8, "seed": 2000, "steps": 3000}
+    argv = ["--results-dir", str(res), "--anchors", str(anchors), "--goal"]
+    res.mkdir()
+    assert learned.main(argv) == 2 and "--artefacts-only" in capsys.readouterr().err   # no artefacts built yet
+    artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors), plan=plan)
+    assert learned.main(argv + ["--tasks", "pendulum,hopper,reacher"]) == 0   # the grid's tasks, in any order
     report = json.loads((res / "diagnostics.json").read_text())
     g = report["goal"]["td3"]
     assert g["baseline"] == "td3-paramnoise"
     rows = {r["method"]: r for r in g["variants"]}
-    assert set(rows) == {"learned-paired", "learned-residual"}
+    assert set(rows) == {"learned-paired", "learned-residual", "learned-bandit"}
     agg = {(p["x"], p["y"]): p for p in json.loads((res / "aggregate.json").read_text())["improvement"]}
     paired = agg[("td3/learned-paired", "td3/td3-paramnoise")]
     assert rows["learned-paired"]["p"] == paired["point"] and rows["learned-paired"]["lo"] == paired["lo"] > 0.5
     assert rows["learned-paired"]["outcome"] == "met" and rows["learned-paired"]["better"] == list(tasks)
     residual = agg[("td3/learned-residual", "td3/td3-paramnoise")]
-    assert rows["learned-residual"]["lo"] == residual["lo"] > 0.5                # P = (1 + 0 + 1) / 3
+    assert rows["learned-residual"]["lo"] == residual["lo"] > 0.5
+    assert rows["learned-residual"]["per_task"] == {"hopper": 1.0, "reacher": 0.0, "pendulum": 1.0}
     assert rows["learned-residual"]["worse"] == ["reacher"] and rows["learned-residual"]["outcome"] == "not met"
+    bandit = rows["learned-bandit"]
+    assert bandit["worse"] == [] and bandit["lo"] < 0.5 < bandit["hi"] and bandit["outcome"] == "not met"
     # The plan holds no control: none is listed as not run, and no comparison names one.
-    assert {c["method"] for c in report["cells"]} == {"learned-paired", "learned-residual"}
+    assert {c["method"] for c in report["cells"]} == {"learned-paired", "learned-residual", "learned-bandit"}
     assert report["predictions"]["td3"]["comparisons"] == [] and report["predictions"]["td3"]["controls"] == []
     md = (res / "diagnostics.md").read_text()
     assert "## The judgement's goal" in md and "| TD3 | Meta (paired reward) | TD3 (param noise) | " in md
     assert "control:" not in md
 
-    # A planned cell without a finished run: pending, whatever the others say.
-    shutil.rmtree(res / "td3" / "cells" / "reacher" / "learned-paired")
-    shutil.rmtree(runs / "td3" / "paper" / "reacher" / "learned-paired")
-    artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors),
-                    plan={"name": "j", "students": ["td3"], "seeds": 8, "seed": 2000, "steps": 3000})
+    # A planned cell not run: pending, with the reason, whatever the others say.
+    shutil.rmtree(res / "td3" / "cells" / "reacher" / "learned-bandit")
+    shutil.rmtree(runs / "td3" / "paper" / "reacher" / "learned-bandit")
+    artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors), plan=plan)
     assert learned.main(argv) == 0
     rows = {r["method"]: r for r in json.loads((res / "diagnostics.json").read_text())["goal"]["td3"]["variants"]}
-    assert rows["learned-paired"]["outcome"].startswith("pending")
-    # Without the benchmark's manifest there is no baseline to judge against: a one-line error.
+    assert rows["learned-paired"]["outcome"].startswith("pending (cells not finished: reacher/learned-bandit not run")
+    # Bad input: a part of the grid's tasks, a student it never planned, a folder without the benchmark's manifest.
+    assert learned.main(argv + ["--tasks", "hopper"]) == 2 and "not a part of them" in capsys.readouterr().err
+    assert learned.main(argv + ["--students", "sac"]) == 2 and "sac not in the grid's plan" in capsys.readouterr().err
     (res / "manifest.json").unlink()
-    assert learned.main(argv) == 2
+    assert learned.main(argv) == 2 and "needs the benchmark's manifest.json" in capsys.readouterr().err

@@ -2,8 +2,7 @@
 predicts, measured from the archived per-cycle metrics (``cells.ARCHIVE_CYCLES``) of a benchmark's finished cells.
 
     python -m experiments.build.learned --results-dir results/learned/screen --tasks hopper,halfcheetah
-    python -m experiments.build.learned --results-dir results/learned/judgement --students td3,sac --goal \
-        --tasks inverted_double_pendulum,inverted_pendulum,hopper,pendulum,halfcheetah,reacher
+    python -m experiments.build.learned --results-dir results/learned/judgement --students td3,sac --goal
 
 Per (student, task, method) of ``grid.LEARNED_METHODS`` with a finished archived cell, over each seed's last
 ``LAST`` cycles (all of them if it has fewer), pooled over seeds unless said otherwise:
@@ -39,11 +38,14 @@ Where the folder holds the benchmark's ``manifest.json``, only what its plan hol
 comparison that names a strategy the grid never planned (the screen's controls in the judgement) is left out, not
 listed as not run.
 
-With ``--goal`` (the judgement on fresh seeds, results/learned/README.md): per student, each variant's probability
-of improvement over the student's baseline (the grid's ``--baseline``: the best fixed strategy chosen in advance)
-with its 95% stratified bootstrap CI, from the benchmark's ``aggregate.json``, and its per-task verdicts against
-that baseline (Holm-corrected within each task, ``tasks/<task>.json``). The goal (``GOAL``) is met when the CI's
-lower bound is above 0.5 and no task is worse; not met otherwise; pending while a planned cell is not finished.
+With ``--goal`` (the judgement on fresh seeds, results/learned/README.md), read from the artefacts that
+``python -m experiments.benchmark ... --artefacts-only`` last wrote into the folder: per student, each variant's
+probability of improvement over the student's baseline (the grid's ``--baseline``: the best fixed strategy chosen
+in advance) with its 95% stratified bootstrap CI (``aggregate.json``), and its verdicts against that baseline
+(``tasks/<task>.json``; Holm-corrected over the student's family: every one of its strategies on every task). The
+goal (``GOAL``) is met when the CI's lower bound is above 0.5 and no task is worse, not met otherwise, and pending,
+with the reason, while the build that wrote those files had a planned cell of the student not finished (the
+family, and so every verdict, grows with it) or left a task out of the aggregate. The tasks are the grid's.
 
 Writes ``<results-dir>/diagnostics.md`` and ``diagnostics.json``. A cell that is not finished, or whose cycles are
 not archived, is listed as such: nothing is estimated.
@@ -89,19 +91,31 @@ DIAGNOSTIC_PREDICTIONS = (
 )
 
 
-GOAL = ("P(variant > best fixed) with its 95% CI's lower bound above 0.5, and no task significantly worse after "
-        "correction")
+GOAL = ("P(variant > baseline, the best fixed strategy chosen in advance) with its 95% CI's lower bound above 0.5, "
+        "and no task significantly worse after correction")
+ARTEFACTS_FIRST = "python -m experiments.benchmark ... --artefacts-only"
 
 
-def planned(results_dir: str) -> dict[str, set[str]] | None:
-    """{student: the methods the grid planned} from the benchmark's ``manifest.json``; None without one."""
+def load_plan(results_dir: str) -> dict | None:
+    """The benchmark's plan (``manifest.json``'s ``benchmark``, with its ``not_run`` and ``unfinished`` cells) of
+    the grid in ``results_dir``; None where the folder holds no benchmark's manifest."""
     path = os.path.join(results_dir, "manifest.json")
     if not os.path.exists(path):
         return None
     with open(path) as f:
-        entries = json.load(f).get("benchmark", {}).get("entries", [])
+        manifest = json.load(f)
+    if "benchmark" not in manifest:
+        return None
+    return {**manifest["benchmark"], "not_run": manifest.get("not_run", []),
+            "unfinished": manifest.get("unfinished", [])}
+
+
+def planned(plan: dict | None) -> dict[str, set[str]] | None:
+    """{student: the methods the grid planned} of a ``load_plan``; None without one."""
+    if plan is None:
+        return None
     out: dict[str, set[str]] = {}
-    for e in entries:
+    for e in plan.get("entries", []):
         out.setdefault(e["student"], set()).add(e["method"])
     return out
 
@@ -239,62 +253,62 @@ def predictions(results_dir: str, student: str, tasks: list[str], cells: list[di
     return {"comparisons": comparisons, "diagnostics": diagnostics, "controls": controls}
 
 
-def goal(results_dir: str, students: list[str], tasks: list[str]) -> dict:
-    """The judgement's goal (module docstring) from the benchmark's artefacts in ``results_dir``: {student:
-    {"baseline": method, "variants": [{method, p, lo, hi, per_task, verdicts: {task: verdict}, worse, better,
-    outcome}]}}. ``ValueError`` (one line) when the grid has no benchmark manifest or the student is not in it."""
-    plan = planned(results_dir)
-    if plan is None:
-        raise ValueError(f"--goal needs the benchmark's manifest.json in {results_dir}")
-    with open(os.path.join(results_dir, "manifest.json")) as f:
-        baselines = json.load(f)["benchmark"]["baselines"]
+def goal(results_dir: str, plan: dict, students: list[str]) -> dict:
+    """The judgement's goal (module docstring) from the benchmark's artefacts in ``results_dir`` and its ``plan``
+    (``load_plan``): {student: {"baseline": method, "variants": [{method, p, lo, hi, per_task: {task: P}, verdicts:
+    {task: verdict}, worse, better, outcome}]}}. ``ValueError`` (one line) for artefacts that are not there."""
+    tasks = list(plan["tasks"])
     agg_path = os.path.join(results_dir, "aggregate.json")
-    improvement, agg_tasks = [], []
-    if os.path.exists(agg_path):
-        with open(agg_path) as f:
-            agg = json.load(f)
-        improvement, agg_tasks = agg.get("improvement", []), agg.get("tasks", [])
+    if not os.path.exists(agg_path):
+        raise ValueError(f"--goal: no aggregate.json in {results_dir} (build the grid's artefacts first: "
+                         f"{ARTEFACTS_FIRST}; the aggregate needs every task's normalisation anchors)")
+    with open(agg_path) as f:
+        agg = json.load(f)
     verdicts: dict[tuple[str, str, str], str] = {}
     for task in tasks:
         path = os.path.join(results_dir, "tasks", f"{task_folder(task)}.json")
-        if os.path.exists(path):
-            with open(path) as f:
-                for r in json.load(f)["rows"]:
-                    if r.get("verdict"):
-                        verdicts[(r["student"], task, r["method"])] = r["verdict"]["verdict"]
+        if not os.path.exists(path):
+            raise ValueError(f"--goal: no tasks/{task_folder(task)}.json in {results_dir} ({ARTEFACTS_FIRST})")
+        with open(path) as f:
+            for r in json.load(f)["rows"]:
+                if r.get("verdict"):
+                    verdicts[(r["student"], task, r["method"])] = r["verdict"]["verdict"]
+    methods = planned(plan)
     out = {}
     for student in students:
-        if student not in plan:
-            raise ValueError(f"--goal: student {student!r} is not in the grid's plan ({', '.join(plan)})")
-        base = baselines[student]
+        base = plan["baselines"][student]
+        open_cells = [f"{t}/{m} " + ("not run" if [s, t, m] in plan["not_run"] else "unfinished")
+                      for s, t, m in plan["not_run"] + plan["unfinished"] if s == student]
+        left_out = [t for t in tasks if t not in agg.get("tasks", [])]
         rows = []
         for method in VARIANTS:
-            if method not in plan[student]:
+            if method not in methods[student] or method == base:
                 continue
-            done = all(final_returns(results_dir, student, t, m) is not None for t in tasks for m in (method, base))
-            p = next((r for r in improvement if r["x"] == f"{student}/{method}" and r["y"] == f"{student}/{base}"),
-                     None)
+            p = next((r for r in agg.get("improvement", []) if r["x"] == f"{student}/{method}"
+                      and r.get("reference") == "baseline"), None)
             v = {t: verdicts.get((student, t, method)) for t in tasks}
-            worse, better = [t for t in tasks if v[t] == "worse"], [t for t in tasks if v[t] == "better"]
-            row = {"method": method, "verdicts": v, "worse": worse, "better": better,
+            row = {"method": method, "verdicts": v, "worse": [t for t in tasks if v[t] == "worse"],
+                   "better": [t for t in tasks if v[t] == "better"],
                    **({"p": p["point"], "lo": p["lo"], "hi": p["hi"],
-                       "per_task": dict(zip(agg_tasks, p["per_task"]))} if p else {})}
-            if not done or p is None or None in v.values() or set(agg_tasks) != set(tasks):
-                row["outcome"] = "pending: not every planned cell is finished"
-            else:
-                row["outcome"] = "met" if p["lo"] > 0.5 and not worse else "not met"
+                       "per_task": dict(zip(agg["tasks"], p.get("per_task") or []))} if p else {})}
+            why = ([f"cells not finished: {', '.join(open_cells)}"] if open_cells else []) + \
+                  ([f"not in the aggregate: {', '.join(left_out)}"] if left_out else []) + \
+                  ([f"no verdict on {', '.join(t for t in tasks if v[t] is None)}"] if None in v.values() else []) + \
+                  (["no probability of improvement"] if p is None else [])
+            row["outcome"] = ("pending (" + "; ".join(why) + ")" if why
+                              else "met" if p["lo"] > 0.5 and not row["worse"] else "not met")
             rows.append(row)
         out[student] = {"baseline": base, "variants": rows}
     return out
 
 
 def build(results_dir: str, tasks: list[str], students: list[str], last: int = LAST,
-          anchors: dict | None = None, with_goal: bool = False) -> dict:
+          anchors: dict | None = None, plan: dict | None = None) -> dict:
     """{"cells": [{student, task, method, **cell_diagnostics}], "predictions": {student: ``predictions``},
-    "last": last, "built": provenance[, "goal": ``goal``]}; ``anchors``: the tasks' normalisation anchors
-    (equivalence margins). Only the methods the grid planned where it has a manifest (``planned``)."""
-    plan = planned(results_dir)
-    mine = {s: None if plan is None else plan.get(s, set()) for s in students}
+    "last": last, "built": provenance}; ``anchors``: the tasks' normalisation anchors (equivalence margins);
+    ``plan``: the grid's (``load_plan``), whose methods alone are read."""
+    methods = planned(plan)
+    mine = {s: None if methods is None else methods[s] for s in students}
     cells = []
     for student in students:
         for task in tasks:
@@ -303,11 +317,8 @@ def build(results_dir: str, tasks: list[str], students: list[str], last: int = L
                     continue
                 d = os.path.join(results_dir, student, "cells", task_folder(task), method)
                 cells.append({"student": student, "task": task, "method": method, **cell_diagnostics(d, last)})
-    report = {"last": last, "cells": cells, "built": build_info(results_dir),
-              "predictions": {s: predictions(results_dir, s, tasks, cells, anchors, mine[s]) for s in students}}
-    if with_goal:
-        report["goal"] = goal(results_dir, students, tasks)
-    return report
+    return {"last": last, "cells": cells, "built": build_info(results_dir),
+            "predictions": {s: predictions(results_dir, s, tasks, cells, anchors, mine[s]) for s in students}}
 
 
 def _f(x, digits=2) -> str:
@@ -332,11 +343,11 @@ def _predictions_markdown(student: str, pred: dict, anchors: str | None) -> list
     m = sum(r["state"] == "compared" for r in pred["controls"])
     lines = ["", f"## {student}: the hypotheses' predictions"]
     if pred["comparisons"]:
-        lines += ["", f"Final returns (mean of each seed's last 10% of evaluations): Welch tests, Holm-corrected over the "
-             f"{n} comparisons made; 'equivalent' only by the TOST of ±{stats.EQUIVALENCE_MARGIN:.0%} of the "
-             "task's normalisation range (" + (f"`{anchors}`; " if anchors else "no anchors: ") + "a task without "
-             "anchors is never equivalent). 'beats' is met by 'better' and "
-             "refuted by 'worse' or 'equivalent'; 'not worse' is met by 'better' or 'equivalent' and refuted by "
+        lines += ["", f"Final returns (mean of each seed's last 10% of evaluations): Welch tests, Holm-corrected "
+                  f"over the {n} comparisons made; 'equivalent' only by the TOST of ±{stats.EQUIVALENCE_MARGIN:.0%} "
+                  "of the task's normalisation range (" + (f"`{anchors}`; " if anchors else "no anchors: ")
+                  + "a task without anchors is never equivalent). 'beats' is met by 'better' and "
+                  "refuted by 'worse' or 'equivalent'; 'not worse' is met by 'better' or 'equivalent' and refuted by "
                   "'worse'; otherwise it is inconclusive.", "",
                   "| hypothesis | prediction | task | a vs b (mean final) | a − b [95% CI] | p | Holm p | verdict | "
                   "outcome |",
@@ -365,8 +376,9 @@ def _predictions_markdown(student: str, pred: dict, anchors: str | None) -> list
 def _goal_markdown(report: dict) -> list[str]:
     lines = ["", "## The judgement's goal", "",
              f"Goal: {GOAL}. P(X > Y): the benchmark's probability of improvement over the tasks (`aggregate.json`, "
-             "95% stratified bootstrap CI); verdicts: each task's, against the student's baseline, Holm-corrected "
-             "within the task (`tasks/<task>.json`).", "",
+             "95% stratified bootstrap CI; per task: the terms it averages); verdicts: against the student's "
+             "baseline, Holm-corrected over the student's family, every one of its strategies on every task "
+             "(`tasks/<task>.json`).", "",
              "| student | variant | baseline | P(variant > baseline) [95% CI] | per task | worse on | better on | "
              "goal |",
              "|---|---|---|---|---|---|---|---|"]
@@ -425,7 +437,8 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m experiments.build.learned", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--results-dir", default="results/learned/screen", help="a benchmark's results folder")
-    p.add_argument("--tasks", default="hopper,halfcheetah", help="comma-separated tasks (default hopper,halfcheetah)")
+    p.add_argument("--tasks", default=None,
+                   help="comma-separated tasks (default: the grid's, from its manifest; else hopper,halfcheetah)")
     p.add_argument("--students", default="td3", help=f"comma-separated students of {', '.join(LEARNED)} (default td3)")
     p.add_argument("--last", type=int, default=LAST, help=f"cycles per seed at the end of training (default {LAST})")
     p.add_argument("--goal", action="store_true",
@@ -435,14 +448,31 @@ def main(argv: list[str] | None = None) -> int:
                         "without them nothing is judged equivalent)")
     a = p.parse_args(argv)
     students = [s for s in a.students.split(",") if s]
-    tasks = [t for t in a.tasks.split(",") if t]
     bad = [s for s in students if s not in LEARNED]
-    if bad or not students or not tasks or a.last <= 0:
-        print(f"error: students must be among {', '.join(LEARNED)}, tasks non-empty and --last positive",
-              file=sys.stderr)
+    if bad or not students or a.last <= 0:
+        print(f"error: students must be among {', '.join(LEARNED)} and --last positive", file=sys.stderr)
         return 2
     if not os.path.isdir(a.results_dir):
         print(f"error: no folder {a.results_dir!r}", file=sys.stderr)
+        return 2
+    plan = load_plan(a.results_dir)
+    tasks = [t for t in (a.tasks or ",".join(plan["tasks"] if plan else ("hopper", "halfcheetah"))).split(",") if t]
+    if not tasks:
+        print("error: --tasks is empty", file=sys.stderr)
+        return 2
+    if plan is not None:
+        unplanned = [s for s in students if s not in planned(plan)] + [t for t in tasks if t not in plan["tasks"]]
+        if unplanned:
+            print(f"error: {', '.join(unplanned)} not in the grid's plan (students {', '.join(planned(plan))}; tasks "
+                  f"{', '.join(plan['tasks'])})", file=sys.stderr)
+            return 2
+    if a.goal and plan is None:
+        print(f"error: --goal needs the benchmark's manifest.json in {a.results_dir} ({ARTEFACTS_FIRST})",
+              file=sys.stderr)
+        return 2
+    if a.goal and set(tasks) != set(plan["tasks"]):
+        print(f"error: --goal judges the grid's tasks ({', '.join(plan['tasks'])}), not a part of them",
+              file=sys.stderr)
         return 2
     from experiments import normalisation
 
@@ -452,10 +482,13 @@ def main(argv: list[str] | None = None) -> int:
     anchors_path = a.anchors or normalisation.DEFAULT_OUT
     anchors = normalisation.load(anchors_path) if os.path.exists(anchors_path) else None
     try:
-        report = build(a.results_dir, tasks, students, a.last, anchors, with_goal=a.goal)
+        judged_goal = goal(a.results_dir, plan, students) if a.goal else None
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    report = build(a.results_dir, tasks, students, a.last, anchors, plan)
+    if judged_goal is not None:
+        report["goal"] = judged_goal
     report["anchors"] = os.path.relpath(anchors_path) if anchors is not None else None
     with open(os.path.join(a.results_dir, "diagnostics.json"), "w") as f:
         json.dump(report, f, indent=1)
