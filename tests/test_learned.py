@@ -219,7 +219,8 @@ def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path, capsys):
     artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors), plan=plan)
     assert learned.main(argv) == 0
     rows = {r["method"]: r for r in json.loads((res / "diagnostics.json").read_text())["goal"]["td3"]["variants"]}
-    assert rows["learned-paired"]["outcome"].startswith("pending (cells not finished: reacher/learned-bandit not run")
+    assert rows["learned-paired"]["outcome"].startswith(
+        "pending (1 of the student's 12 planned cells not finished: reacher/learned-bandit not run")
     # Bad input: a part of the grid's tasks, a student it never planned, a folder without the benchmark's manifest.
     assert learned.main(argv + ["--tasks", "hopper"]) == 2 and "not a part of them" in capsys.readouterr().err
     assert learned.main(argv + ["--students", "sac"]) == 2 and "sac not in the grid's plan" in capsys.readouterr().err

@@ -291,7 +291,9 @@ def goal(results_dir: str, plan: dict, students: list[str]) -> dict:
                    "better": [t for t in tasks if v[t] == "better"],
                    **({"p": p["point"], "lo": p["lo"], "hi": p["hi"],
                        "per_task": dict(zip(agg["tasks"], p.get("per_task") or []))} if p else {})}
-            why = ([f"cells not finished: {', '.join(open_cells)}"] if open_cells else []) + \
+            n_cells = len(tasks) * len(methods[student])
+            why = ([f"{len(open_cells)} of the student's {n_cells} planned cells not finished: "
+                    + ", ".join(open_cells[:3]) + (", ..." if len(open_cells) > 3 else "")] if open_cells else []) + \
                   ([f"not in the aggregate: {', '.join(left_out)}"] if left_out else []) + \
                   ([f"no verdict on {', '.join(t for t in tasks if v[t] is None)}"] if None in v.values() else []) + \
                   (["no probability of improvement"] if p is None else [])
