@@ -51,6 +51,22 @@ def _first_difference(a: bytes, b: bytes) -> str:
     return f"{len(lines_a)} lines rebuilt, {len(lines_b)} committed"
 
 
+def _compare(names, out, committed: str, folder: str) -> int:
+    """Each of ``names`` rebuilt in ``out`` against the committed one: byte for byte (a figure: a PNG only);
+    returns how many were compared byte for byte."""
+    compared = 0
+    for name in names:
+        rebuilt = (out / name).read_bytes()
+        if name.endswith(".png"):
+            assert rebuilt[:8] == b"\x89PNG\r\n\x1a\n", name
+            continue
+        with open(os.path.join(committed, name), "rb") as f:
+            want = f.read()
+        assert rebuilt == want, f"{folder}/{name} differs from the rebuild, {_first_difference(rebuilt, want)}"
+        compared += 1
+    return compared
+
+
 @pytest.mark.parametrize("folder", list(BUILDS), ids=["paper", "modern", "mujoco", "td3", "tuned"])
 def test_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
     results_dir, preset = BUILDS[folder]
@@ -74,16 +90,7 @@ def test_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, 
     written = {str(p.relative_to(out)) for p in out.rglob("*")
                if p.is_file() and p.relative_to(out).parts[0] != "cells"}
     assert written == set(stored["files"]) | {"manifest.json"}
-    compared = 0
-    for name in sorted(written):
-        rebuilt = (out / name).read_bytes()
-        if name.endswith(".png"):
-            assert rebuilt[:8] == b"\x89PNG\r\n\x1a\n", name
-            continue
-        with open(os.path.join(committed, name), "rb") as f:
-            want = f.read()
-        assert rebuilt == want, f"{folder}/{name} differs from the rebuild, {_first_difference(rebuilt, want)}"
-        compared += 1
+    compared = _compare(sorted(written), out, committed, folder)
     assert compared >= 9  # table2 md/json/csv, steps_to_threshold csv/md, comparisons md/json, README, manifest
 
 
@@ -125,14 +132,5 @@ def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, 
     written = {str(p.relative_to(out)) for p in out.rglob("*")
                if p.is_file() and p.relative_to(out).parts[0] not in students}
     assert written == set(stored["files"]) | set(kept)
-    compared = 0
-    for name in stored["files"]:
-        rebuilt = (out / name).read_bytes()
-        if name.endswith(".png"):
-            assert rebuilt[:8] == b"\x89PNG\r\n\x1a\n", name
-            continue
-        with open(os.path.join(committed, name), "rb") as f:
-            want = f.read()
-        assert rebuilt == want, f"{folder}/{name} differs from the rebuild, {_first_difference(rebuilt, want)}"
-        compared += 1
+    compared = _compare(stored["files"], out, committed, folder)
     assert compared >= 3 * len(tasks) + 4  # per task md, json, per-seed csv; cost md and json, README, manifest
