@@ -64,7 +64,7 @@ from collections import Counter
 import numpy as np
 
 from experiments.build import stats
-from experiments.build.cells import ARCHIVE_CYCLES, build_info, load_run
+from experiments.build.cells import ARCHIVE_CYCLES, build_info, load_run, read_json
 from experiments.build.grid import LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_NAMES, task_folder, task_name
 
 LAST = 100  # cycles per seed at the end of training that the diagnostics read
@@ -99,11 +99,7 @@ ARTEFACTS_FIRST = "python -m experiments.benchmark ... --artefacts-only"
 def load_plan(results_dir: str) -> dict | None:
     """The benchmark's plan (``manifest.json``'s ``benchmark``, with its ``not_run`` and ``unfinished`` cells) of
     the grid in ``results_dir``; None where the folder holds no benchmark's manifest."""
-    path = os.path.join(results_dir, "manifest.json")
-    if not os.path.exists(path):
-        return None
-    with open(path) as f:
-        manifest = json.load(f)
+    manifest = read_json(os.path.join(results_dir, "manifest.json"))
     if "benchmark" not in manifest:
         return None
     return {**manifest["benchmark"], "not_run": manifest.get("not_run", []),
@@ -280,6 +276,7 @@ def goal(results_dir: str, plan: dict, students: list[str]) -> dict:
         open_cells = [f"{t}/{m} " + ("not run" if [s, t, m] in plan["not_run"] else "unfinished")
                       for s, t, m in plan["not_run"] + plan["unfinished"] if s == student]
         left_out = [t for t in tasks if t not in agg.get("tasks", [])]
+        n_cells = len(tasks) * len(methods[student])
         rows = []
         for method in VARIANTS:
             if method not in methods[student] or method == base:
@@ -291,7 +288,6 @@ def goal(results_dir: str, plan: dict, students: list[str]) -> dict:
                    "better": [t for t in tasks if v[t] == "better"],
                    **({"p": p["point"], "lo": p["lo"], "hi": p["hi"],
                        "per_task": dict(zip(agg["tasks"], p.get("per_task") or []))} if p else {})}
-            n_cells = len(tasks) * len(methods[student])
             why = ([f"{len(open_cells)} of the student's {n_cells} planned cells not finished: "
                     + ", ".join(open_cells[:3]) + (", ..." if len(open_cells) > 3 else "")] if open_cells else []) + \
                   ([f"not in the aggregate: {', '.join(left_out)}"] if left_out else []) + \
