@@ -118,21 +118,12 @@ def plan(a: argparse.Namespace) -> list[tuple[str, str, list[str]]]:
 
 
 def run_cells(a: argparse.Namespace, todo: list[tuple[str, str, list[str]]]) -> int:
+    """Runs the planned cells in turn (``grid_cells.run_cells``: a Ctrl-C stops the screen wherever it comes);
+    returns the exit status."""
     rargs = reproduce_args(a)
-    status = 0
-    for i, (task, name, options) in enumerate(todo, 1):
-        tag = f"[{i}/{len(todo)}] {task}/{name}"
-        p = grid_cells.plan_cell(rargs, task, name, options)
-        print(f"{tag}: {p['message']}", flush=True)
-        if p["argv"] is None or a.dry_run:
-            continue
-        code = grid_cells.run_cell(rargs, task, name, p)
-        if code in (130, 143):  # Ctrl-C or SIGTERM
-            print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
-            return code
-        if code:
-            print(f"{tag}: stopped with exit {code}; continuing", file=sys.stderr, flush=True)
-            status = status or code
+    status, _ = grid_cells.run_cells([grid_cells.Cell(rargs, task, name, tuple(options), (task, name),
+                                                      f"{task}/{name}") for task, name, options in todo],
+                                     dry_run=a.dry_run)
     return status
 
 

@@ -221,13 +221,28 @@ def main(argv: list[str] | None = None) -> int:
     label = training_args.run_label(configs[0])
     print(f"sweep of {len(settings)} settings x {a['seeds']} seeds = {n} runs of {label} "
           f"({configs[0].run.total_steps:,} env steps each) in {len(groups)} program(s); output {out}", flush=True)
-    for g, group in enumerate(groups):
-        status = run_group(out, g, group, settings, configs, env, a, args,
-                           restart=runner.restart_command("experiments.sweep", argv))
-        if status:
-            return status
+    resume = resume_command(out)
+    # A Ctrl-C between two groups is kept (the next group stops after its first chunk, or none starts).
+    with runner.Signals("the sweep stops at the next checkpoint or before the next group") as signals:
+        try:
+            for g, group in enumerate(groups):
+                if signals.requested:
+                    print(f"\ninterrupted before group {g + 1} of {len(groups)} started; continue with: {resume}",
+                          file=sys.stderr, flush=True)
+                    return 130
+                status = run_group(out, g, group, settings, configs, env, a, args,
+                                   restart=runner.restart_command("experiments.sweep", argv))
+                if status:
+                    return status
+        except runner.Stopped as err:  # between two groups' loops
+            print(f"\nstopped by {err.who} between two groups; continue with: {resume}", file=sys.stderr, flush=True)
+            return err.status
     write_summary(out, settings, configs, plot=not args.no_plot)
     return 0
+
+
+def resume_command(out: str) -> str:
+    return f"python -m experiments.sweep --resume {out}"
 
 
 def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, args, restart: str = "") -> int:
@@ -253,7 +268,7 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
         print(f"{label}: done, skipped", flush=True)
         checkpointer.close()
         return 0
-    resume = f"python -m experiments.sweep --resume {out}"
+    resume = resume_command(out)
 
     def checkpointed() -> int | None:
         done = checkpointer.steps()

@@ -260,3 +260,43 @@ def test_a_call_from_a_dirty_tree_stores_its_diff_and_the_tables_count_it(tmp_pa
     assert cells.cell_physics(archived["ddpg-normal"]) == ("mjx", False)
     assert "mjx inferred for cells whose config predates the physics option" in cells.provenance_footer(
         build, [archived["ddpg-normal"]])
+
+
+def test_a_ctrl_c_between_two_cells_stops_the_grid_also_when_started_in_the_background(monkeypatch, capsys):
+    """A grid started by a shell in the background (SIGINT ignored, as ``cmd &`` leaves it) and sent SIGINT while
+    it archives a finished cell or sets up the next: the next cell's run starts with the stop (it stops after its
+    first chunk) or no cell starts; the grid exits 130."""
+    import signal
+
+    from metapg_jax.host import runner
+
+    ran, started = [], []
+
+    def run_cell(args, task, method, plan):  # a run: its own loop's signals, then the grid's archive
+        with runner.Signals() as loop:
+            started.append((method, loop.requested))
+        ran.append(method)
+        if method == "a":
+            signal.raise_signal(signal.SIGINT)  # while the finished cell is archived
+        return 130 if loop.requested else 0
+
+    def plan_cell(args, task, method, options=None):
+        if method == "c":
+            signal.raise_signal(signal.SIGINT)  # while the next cell is planned
+        return {"argv": ["--x"], "state": "new", "archived": "nowhere", "message": "new"}
+
+    monkeypatch.setattr(grid_cells, "run_cell", run_cell)
+    monkeypatch.setattr(grid_cells, "plan_cell", plan_cell)
+    cells_ = lambda *ms: [grid_cells.Cell(None, "pendulum", m, None, m, m) for m in ms]
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        assert grid_cells.run_cells(cells_("a", "b")) == (130, {"a": "ran"})
+        assert ran == ["a"] and "[2/2] b: not started (interrupted)" in capsys.readouterr().err
+        ran.clear()
+        started.clear()
+        assert grid_cells.run_cells(cells_("b", "c", "d")) == (130, {"b": "ran", "c": "exit 130"})
+        assert started == [("b", False), ("c", True)]
+        assert "[2/3] c: interrupted; run the same command again to resume" in capsys.readouterr().err
+        assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, old)

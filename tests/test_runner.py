@@ -114,3 +114,26 @@ def test_a_chunk_loop_closes_what_it_kept_and_turns_a_stop_into_its_line_and_sta
     except ValueError:
         pass
     assert closed[-1] == kept.name and chunk_loop.status == 0
+
+
+@pytest.fixture
+def sigint_ignored():
+    """SIGINT as a shell leaves it for a job it starts in the background (``cmd &``): ignored."""
+    old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_a_ctrl_c_between_two_loops_is_kept_and_the_next_loop_starts_with_it(sigint_ignored, capsys):
+    with runner.Signals("the grid stops before the next cell") as outer:
+        signal.raise_signal(signal.SIGINT)  # between two loops, in a process started with SIGINT ignored
+        assert outer.requested
+        with runner.Signals() as inner:
+            assert inner.requested  # a run being set up stops after its first chunk
+            with pytest.raises(runner.Stopped, match="SIGINT"):
+                signal.raise_signal(signal.SIGINT)  # the second Ctrl-C: at once
+        assert signal.getsignal(signal.SIGINT) == outer._handler
+    assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
+    assert capsys.readouterr().err.count("interrupt: the grid stops before the next cell (Ctrl-C again") == 1
+    with runner.Signals() as alone:
+        assert not alone.requested

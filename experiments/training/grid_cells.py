@@ -17,6 +17,7 @@ from typing import NamedTuple
 from experiments.build.cells import archive_cell, archive_dir_for, read_json
 from experiments.build.grid import METHOD_PRESETS, METHODS, baseline_for, task_folder
 from experiments.training.args import RUN_ARGS
+from metapg_jax.host.runner import Signals, Stopped
 
 
 class Cell(NamedTuple):
@@ -227,8 +228,10 @@ def run_cell(args: argparse.Namespace, task: str, method: str, plan: dict) -> in
     diff = provenance.uncommitted_diff() if started["dirty"] else ""
     try:
         code = run_lib.main(argv)
-    except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed (e.g. while compiling)
+    except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed, outside ``run_cells``
         code = 130
+    except Stopped as err:  # SIGTERM or a second Ctrl-C under ``run_cells``'s handler, before the run's own
+        code = err.status
     if os.path.isdir(out):
         write_cell_record(out, argv, code, time.perf_counter() - t0, started, diff, time.process_time() - cpu0)
         archive_cell(out, plan["archived"], method, baseline_for(args.preset, args.student))
@@ -247,32 +250,51 @@ def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> 
 
 def run_cells(cells: list[Cell], dry_run: bool = False) -> tuple[int, dict]:
     """Runs the cells one after another in this process (each planned from what is on disk when its turn comes);
-    returns (exit status, {cell key: what happened}). ``dry_run``: plan and print only."""
+    returns (exit status, {cell key: what happened}). ``dry_run``: plan and print only.
+
+    Ctrl-C stops the grid wherever it comes (``runner.Signals``): during a cell's run, the run checkpoints its
+    chunk in flight; between two cells (planning, archiving, setting up the next run), the next cell is not
+    started, or a run already being set up stops after its first chunk; exit 130. SIGTERM or a second Ctrl-C
+    stops at once (143 / 130)."""
     status, report = 0, {}
-    for i, cell in enumerate(cells, 1):
-        tag = f"[{i}/{len(cells)}] {cell.tag}"
-        plan = plan_cell(cell.args, cell.task, cell.method, cell.options)
-        print(f"{tag}: {plan['message']}", flush=True)
-        if plan["argv"] is None:
-            report[cell.key] = "skipped"
-            continue
-        if dry_run:
-            report[cell.key] = f"would {plan['state']}"
-            continue
-        code = run_cell(cell.args, cell.task, cell.method, plan)
-        if code == 0 and os.path.exists(os.path.join(plan["archived"], "summary.json")):
-            print(f"{tag}: finished; results archived in {plan['archived']}", flush=True)
-        report[cell.key] = outcome(plan, code)
-        if code in (130, 143):  # Ctrl-C or SIGTERM: the grid stops too
-            print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
-            return code, report
-        if code == 2:
-            print(f"{tag}: bad options (exit 2); stopping the grid", file=sys.stderr, flush=True)
-            return 2, report
-        if code:
-            print(f"{tag}: stopped with exit {code}; continuing with the next cell", file=sys.stderr, flush=True)
-            status = status or code
+    with Signals("the grid stops at the next checkpoint or before the next cell") as signals:
+        for i, cell in enumerate(cells, 1):
+            tag = f"[{i}/{len(cells)}] {cell.tag}"
+            if signals.requested:
+                print(f"{tag}: not started (interrupted); run the same command again to go on", file=sys.stderr,
+                      flush=True)
+                return 130, report
+            try:
+                code = _run_in_turn(cell, tag, dry_run, report)
+            except Stopped as err:  # planning or archiving, between the runs
+                print(f"{tag}: stopped by {err.who}; run the same command again to go on", file=sys.stderr,
+                      flush=True)
+                return err.status, report
+            if code in (130, 143):  # Ctrl-C or SIGTERM: the grid stops too
+                print(f"{tag}: interrupted; run the same command again to resume", file=sys.stderr, flush=True)
+                return code, report
+            if code == 2:
+                print(f"{tag}: bad options (exit 2); stopping the grid", file=sys.stderr, flush=True)
+                return 2, report
+            if code:
+                print(f"{tag}: stopped with exit {code}; continuing with the next cell", file=sys.stderr,
+                      flush=True)
+                status = status or code
     return status, report
+
+
+def _run_in_turn(cell: Cell, tag: str, dry_run: bool, report: dict) -> int:
+    """``run_cells``'s one cell: planned, run (unless done or ``dry_run``) and reported; its exit status."""
+    plan = plan_cell(cell.args, cell.task, cell.method, cell.options)
+    print(f"{tag}: {plan['message']}", flush=True)
+    if plan["argv"] is None or dry_run:
+        report[cell.key] = "skipped" if plan["argv"] is None else f"would {plan['state']}"
+        return 0
+    code = run_cell(cell.args, cell.task, cell.method, plan)
+    if code == 0 and os.path.exists(os.path.join(plan["archived"], "summary.json")):
+        print(f"{tag}: finished; results archived in {plan['archived']}", flush=True)
+    report[cell.key] = outcome(plan, code)
+    return code
 
 
 def _ray_cell(cell: Cell, cwd: str) -> tuple[dict, int]:

@@ -38,19 +38,26 @@ class Signals:
 
     Python runs a handler wherever the main thread is, also inside a garbage-collection callback or a
     ``__del__``, where an exception is printed and dropped ("Exception ignored in ..."): so the handler
-    also keeps the stop in ``stopped``, and ``wait`` and ``check`` raise it again."""
+    also keeps the stop in ``stopped``, and ``wait`` and ``check`` raise it again.
 
-    def __init__(self):
+    A command that runs several loops in turn (a grid's cells, a sweep's groups) holds its own ``Signals`` around
+    them (``first``: what its first Ctrl-C does), so that a Ctrl-C between two loops is kept, not lost: it
+    replaces whatever the process started with, also the ignored SIGINT that a shell gives a job it starts in the
+    background. A loop opened inside it takes over the signals and starts with the outer one's first Ctrl-C
+    (``requested``), so a Ctrl-C that came while the next loop was being set up stops that loop after its first
+    chunk."""
+
+    def __init__(self, first: str = "finishing the current chunk, then checkpointing"):
         self.requested = False
         self.stopped: Stopped | None = None
         self.in_flight = None  # the 1-based chunk the loop is running, for the stop line
+        self._first = first
         self._old = {}
 
     def _handler(self, signum, frame):
         if signum == signal.SIGINT and not self.requested:
             self.requested = True
-            print("\ninterrupt: finishing the current chunk, then checkpointing (Ctrl-C again to stop at once)",
-                  file=sys.stderr, flush=True)
+            print(f"\ninterrupt: {self._first} (Ctrl-C again to stop at once)", file=sys.stderr, flush=True)
             return
         self.stopped = Stopped(signum)
         raise self.stopped
@@ -58,6 +65,9 @@ class Signals:
     def __enter__(self):
         for signum in (signal.SIGINT, signal.SIGTERM):
             self._old[signum] = signal.signal(signum, self._handler)
+        outer = getattr(self._old[signal.SIGINT], "__self__", None)
+        if isinstance(outer, Signals) and outer.requested:
+            self.requested = True
         return self
 
     def __exit__(self, *exc):
