@@ -222,18 +222,21 @@ def main(argv: list[str] | None = None) -> int:
     print(f"sweep of {len(settings)} settings x {a['seeds']} seeds = {n} runs of {label} "
           f"({configs[0].run.total_steps:,} env steps each) in {len(groups)} program(s); output {out}", flush=True)
     resume = resume_command(out)
-    # A Ctrl-C between two groups is kept (the next group stops after its first chunk, or none starts).
+    # A Ctrl-C between two groups' loops is kept (the next group stops after its first chunk, or none starts).
     with runner.Signals("the sweep stops at the next checkpoint or before the next group") as signals:
         try:
             for g, group in enumerate(groups):
+                signals.check()
                 if signals.requested:
                     print(f"\ninterrupted before group {g + 1} of {len(groups)} started; continue with: {resume}",
                           file=sys.stderr, flush=True)
                     return 130
-                status = run_group(out, g, group, settings, configs, env, a, args,
-                                   restart=runner.restart_command("experiments.sweep", argv))
+                with signals.holding():
+                    status = run_group(out, g, group, settings, configs, env, a, args,
+                                       restart=runner.restart_command("experiments.sweep", argv))
                 if status:
                     return status
+            signals.check()
         except runner.Stopped as err:  # between two groups' loops
             print(f"\nstopped by {err.who} between two groups; continue with: {resume}", file=sys.stderr, flush=True)
             return err.status

@@ -297,6 +297,16 @@ def test_a_ctrl_c_between_two_cells_stops_the_grid_also_when_started_in_the_back
         assert grid_cells.run_cells(cells_("b", "c", "d")) == (130, {"b": "ran", "c": "exit 130"})
         assert started == [("b", False), ("c", True)]
         assert "[2/3] c: interrupted; run the same command again to resume" in capsys.readouterr().err
+        ran.clear()
+
+        def terminated_while_archived(args, task, method, plan):  # the record and archive end first
+            ran.append(method)
+            signal.raise_signal(signal.SIGTERM)
+            return 0
+
+        monkeypatch.setattr(grid_cells, "run_cell", terminated_while_archived)
+        assert grid_cells.run_cells(cells_("a", "b")) == (143, {"a": "ran"})
+        assert ran == ["a"] and "[1/2] a: stopped by SIGTERM; run the same command again" in capsys.readouterr().err
         assert signal.getsignal(signal.SIGINT) == signal.SIG_IGN
     finally:
         signal.signal(signal.SIGINT, old)

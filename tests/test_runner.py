@@ -137,3 +137,18 @@ def test_a_ctrl_c_between_two_loops_is_kept_and_the_next_loop_starts_with_it(sig
     assert capsys.readouterr().err.count("interrupt: the grid stops before the next cell (Ctrl-C again") == 1
     with runner.Signals() as alone:
         assert not alone.requested
+
+
+def test_a_stop_held_between_loops_reaches_the_next_loop_and_one_a_loop_got_reaches_the_outer_one(capsys):
+    with runner.Signals("the grid stops before the next cell") as outer:
+        with outer.holding():
+            with runner.Signals() as run:  # a Ctrl-C during a run's last chunk: the run itself ends normally
+                signal.raise_signal(signal.SIGINT)
+            assert run.requested and outer.requested  # so the grid does not start the next cell
+            signal.raise_signal(signal.SIGTERM)  # while the finished cell is archived: kept, not raised
+        with pytest.raises(runner.Stopped, match="SIGTERM"):
+            outer.check()
+        with runner.Signals() as late:  # a loop set up while the stop was held raises it at its first wait
+            with pytest.raises(runner.Stopped, match="SIGTERM"):
+                late.wait({"x": np.zeros(2)})
+    assert "interrupt: finishing the current chunk" in capsys.readouterr().err

@@ -228,10 +228,8 @@ def run_cell(args: argparse.Namespace, task: str, method: str, plan: dict) -> in
     diff = provenance.uncommitted_diff() if started["dirty"] else ""
     try:
         code = run_lib.main(argv)
-    except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed, outside ``run_cells``
+    except KeyboardInterrupt:  # Ctrl-C before the run's own handler is installed (not under ``run_cells``)
         code = 130
-    except Stopped as err:  # SIGTERM or a second Ctrl-C under ``run_cells``'s handler, before the run's own
-        code = err.status
     if os.path.isdir(out):
         write_cell_record(out, argv, code, time.perf_counter() - t0, started, diff, time.process_time() - cpu0)
         archive_cell(out, plan["archived"], method, baseline_for(args.preset, args.student))
@@ -253,20 +251,23 @@ def run_cells(cells: list[Cell], dry_run: bool = False) -> tuple[int, dict]:
     returns (exit status, {cell key: what happened}). ``dry_run``: plan and print only.
 
     Ctrl-C stops the grid wherever it comes (``runner.Signals``): during a cell's run, the run checkpoints its
-    chunk in flight; between two cells (planning, archiving, setting up the next run), the next cell is not
-    started, or a run already being set up stops after its first chunk; exit 130. SIGTERM or a second Ctrl-C
-    stops at once (143 / 130)."""
+    chunk in flight; while a run is set up, after its first chunk; while a cell is planned, recorded or archived,
+    before the next cell starts; exit 130. SIGTERM or a second Ctrl-C stops a run at once (143 / 130); one that
+    comes while a cell is recorded or archived waits for that to end."""
     status, report = 0, {}
     with Signals("the grid stops at the next checkpoint or before the next cell") as signals:
         for i, cell in enumerate(cells, 1):
             tag = f"[{i}/{len(cells)}] {cell.tag}"
-            if signals.requested:
-                print(f"{tag}: not started (interrupted); run the same command again to go on", file=sys.stderr,
-                      flush=True)
-                return 130, report
             try:
-                code = _run_in_turn(cell, tag, dry_run, report)
-            except Stopped as err:  # planning or archiving, between the runs
+                signals.check()
+                if signals.requested:
+                    print(f"{tag}: not started (interrupted); run the same command again to go on",
+                          file=sys.stderr, flush=True)
+                    return 130, report
+                with signals.holding():
+                    code = _run_in_turn(cell, tag, dry_run, report)
+                signals.check()
+            except Stopped as err:  # outside the runs' own loops
                 print(f"{tag}: stopped by {err.who}; run the same command again to go on", file=sys.stderr,
                       flush=True)
                 return err.status, report

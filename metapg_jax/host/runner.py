@@ -9,6 +9,7 @@ a checkpoint holds) is theirs, passed in as functions.
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 import time
@@ -43,16 +44,20 @@ class Signals:
     A command that runs several loops in turn (a grid's cells, a sweep's groups) holds its own ``Signals`` around
     them (``first``: what its first Ctrl-C does), so that a Ctrl-C between two loops is kept, not lost: it
     replaces whatever the process started with, also the ignored SIGINT that a shell gives a job it starts in the
-    background. A loop opened inside it takes over the signals and starts with the outer one's first Ctrl-C
-    (``requested``), so a Ctrl-C that came while the next loop was being set up stops that loop after its first
-    chunk."""
+    background. It runs each loop, with what comes before and after it (setting up, recording, archiving),
+    under ``holding``: a stop is kept there instead of raised, and ``check`` raises it once that is done. A loop
+    opened inside takes over the signals and starts with the outer one's stop: a first Ctrl-C that came while
+    it was set up stops it after its first chunk, a SIGTERM at its first ``wait``; what it received is handed
+    back to the outer one when it ends (a Ctrl-C during a run's last chunk stops the grid after that run)."""
 
     def __init__(self, first: str = "finishing the current chunk, then checkpointing"):
         self.requested = False
         self.stopped: Stopped | None = None
         self.in_flight = None  # the 1-based chunk the loop is running, for the stop line
         self._first = first
+        self._hold = False
         self._old = {}
+        self._outer: Signals | None = None
 
     def _handler(self, signum, frame):
         if signum == signal.SIGINT and not self.requested:
@@ -60,20 +65,35 @@ class Signals:
             print(f"\ninterrupt: {self._first} (Ctrl-C again to stop at once)", file=sys.stderr, flush=True)
             return
         self.stopped = Stopped(signum)
-        raise self.stopped
+        if not self._hold:
+            raise self.stopped
 
     def __enter__(self):
         for signum in (signal.SIGINT, signal.SIGTERM):
             self._old[signum] = signal.signal(signum, self._handler)
         outer = getattr(self._old[signal.SIGINT], "__self__", None)
-        if isinstance(outer, Signals) and outer.requested:
-            self.requested = True
+        self._outer = outer if isinstance(outer, Signals) else None
+        if self._outer is not None:
+            self.requested, self.stopped = self._outer.requested, self._outer.stopped
         return self
 
     def __exit__(self, *exc):
         for signum, old in self._old.items():
             signal.signal(signum, old)
+        if self._outer is not None:
+            self._outer.requested = self._outer.requested or self.requested
+            self._outer.stopped = self._outer.stopped or self.stopped
         return False
+
+    @contextlib.contextmanager
+    def holding(self):
+        """Keeps a stop that comes inside the block (``stopped``) instead of raising it there; ``check`` after
+        the block raises it."""
+        self._hold = True
+        try:
+            yield self
+        finally:
+            self._hold = False
 
     def check(self) -> None:
         """Raises the ``Stopped`` a handler raised where it was dropped, if any."""
