@@ -191,6 +191,7 @@ def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path, capsys):
     assert learned.main(argv) == 2 and "--artefacts-only" in capsys.readouterr().err   # no artefacts built yet
     artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors), plan=plan)
     assert learned.main(argv + ["--tasks", "pendulum,hopper,reacher"]) == 0   # the grid's tasks, in any order
+    out = capsys.readouterr().out
     report = json.loads((res / "diagnostics.json").read_text())
     g = report["goal"]["td3"]
     assert g["baseline"] == "td3-paramnoise"
@@ -200,6 +201,8 @@ def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path, capsys):
     paired = agg[("td3/learned-paired", "td3/td3-paramnoise")]
     assert rows["learned-paired"]["p"] == paired["point"] and rows["learned-paired"]["lo"] == paired["lo"] > 0.5
     assert rows["learned-paired"]["outcome"] == "met" and rows["learned-paired"]["better"] == list(tasks)
+    assert (f"goal: TD3 Meta (paired reward) against TD3 (param noise): P = {paired['point']:.2f} "
+            f"[{paired['lo']:.2f}, {paired['hi']:.2f}], worse on 0 task(s): met") in out.splitlines()
     residual = agg[("td3/learned-residual", "td3/td3-paramnoise")]
     assert rows["learned-residual"]["lo"] == residual["lo"] > 0.5
     assert rows["learned-residual"]["per_task"] == {"hopper": 1.0, "reacher": 0.0, "pendulum": 1.0}

@@ -495,6 +495,11 @@ def main(argv: list[str] | None = None) -> int:
         f.write(markdown(report))
     done = sum(c["state"] == "finished" for c in report["cells"])
     print(f"diagnostics of {done} of {len(report['cells'])} cells in {a.results_dir}/diagnostics.md")
+    for student, g in (judged_goal or {}).items():
+        for r in g["variants"]:
+            p = f"P = {r['p']:.2f} [{r['lo']:.2f}, {r['hi']:.2f}]" if "p" in r else "P not computed"
+            print(f"goal: {STUDENT_NAMES.get(student, student)} {_name(r['method'])} against {_name(g['baseline'])}: "
+                  f"{p}, worse on {len(r['worse'])} task(s): {r['outcome']}")
     return 0
 
 
