@@ -59,6 +59,7 @@ from experiments import reproduce
 from experiments.build import benchmark as artefacts
 from experiments.build.grid import LEARNED, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, TASKS, task_folder
 from experiments.training import grid_cells
+from metapg_jax.host.terminal import duration
 
 DEFAULT_NAME = "exploration"
 DEFAULT_STUDENTS = ("td3", "sac")
@@ -327,10 +328,6 @@ def calibrate(a: argparse.Namespace, tasks: list[str], todo: list[tuple[grid_cel
     return estimates, {"/".join(k): v for k, v in measured.items()}, failures
 
 
-def _duration(seconds: float) -> str:
-    return f"{seconds:,.0f} s" if seconds < 3600 else f"{seconds / 3600:,.2f} h"
-
-
 def dry_run(a: argparse.Namespace, tasks: list[str], cells: list[grid_cells.Cell]) -> int:
     """Prints every cell's state and command, and (unless ``--no-calibrate``) its estimated time and the total;
     returns 1 when every calibration run failed, else 0."""
@@ -345,7 +342,7 @@ def dry_run(a: argparse.Namespace, tasks: list[str], cells: list[grid_cells.Cell
         line = f"[{i}/{len(plans)}] {cell.tag} [{p['state']}] {p['message']}"
         if cell.key in estimates:
             e = estimates[cell.key]
-            line += f"\n    estimated: {_duration(e['cpu_seconds'])} CPU, {_duration(e['wall_seconds'])} wall"
+            line += f"\n    estimated: {duration(e['cpu_seconds'])} CPU, {duration(e['wall_seconds'])} wall"
         print(line, flush=True)
     print("plan: " + ", ".join(f"{n} {k}" for k, n in sorted(counts.items())), flush=True)
     if not todo:
@@ -356,7 +353,7 @@ def dry_run(a: argparse.Namespace, tasks: list[str], cells: list[grid_cells.Cell
         cpu = sum(e["cpu_seconds"] for e in estimates.values())
         wall = sum(e["wall_seconds"] for e in estimates.values())
         missing = len(todo) - len(estimates)
-        print(f"estimated total: {_duration(cpu)} CPU, {_duration(wall)} wall one cell at a time on this machine "
+        print(f"estimated total: {duration(cpu)} CPU, {duration(wall)} wall one cell at a time on this machine "
               f"({os.cpu_count()} CPUs)" + (f"; {missing} cells without an estimate (calibration failed)"
                                                      if missing else ""), flush=True)
     return 1 if failures and not estimates else 0

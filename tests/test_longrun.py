@@ -379,3 +379,5 @@ def test_progress_after_a_resume_counts_this_calls_steps_only():
     assert shown["initial"] == 270_000
     assert (shown["n"] - shown["initial"]) / shown["elapsed"] == pytest.approx(15_000 / elapsed, rel=0.1)
     bar.close()
+    # A grid's progress line says durations the same way: seconds, minutes under two hours, then hours.
+    assert [terminal.duration(t) for t in (42, 750, 7199, 11_520)] == ["42 s", "12.5 min", "120.0 min", "3.20 h"]

@@ -3,6 +3,7 @@ skip what is done, resume), the TD3 and C-engine grids' folders, TensorBoard, an
 
 import json
 import os
+import re
 import shutil
 import sys
 
@@ -291,7 +292,10 @@ def test_a_ctrl_c_between_two_cells_stops_the_grid_also_when_started_in_the_back
     old = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         assert grid_cells.run_cells(cells_("a", "b")) == (130, {"a": "ran"})
-        assert ran == ["a"] and "[2/2] b: not started (interrupted)" in capsys.readouterr().err
+        out, err = capsys.readouterr()
+        assert ran == ["a"] and "[2/2] b: not started (interrupted)" in err
+        assert re.search(r"^grid: 1 cell\(s\) run in this call, \d+ s each on average; 1 cell\(s\) after this one, "
+                         r"at most about \d+ s more at that rate$", out, re.M)
         ran.clear()
         started.clear()
         assert grid_cells.run_cells(cells_("b", "c", "d")) == (130, {"b": "ran", "c": "exit 130"})

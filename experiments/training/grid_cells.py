@@ -18,6 +18,7 @@ from experiments.build.cells import archive_cell, archive_dir_for, read_json
 from experiments.build.grid import METHOD_PRESETS, METHODS, baseline_for, task_folder
 from experiments.training.args import RUN_ARGS
 from metapg_jax.host.runner import Signals, Stopped
+from metapg_jax.host.terminal import duration
 
 
 class Cell(NamedTuple):
@@ -254,7 +255,7 @@ def run_cells(cells: list[Cell], dry_run: bool = False) -> tuple[int, dict]:
     chunk in flight; while a run is set up, after its first chunk; while a cell is planned, recorded or archived,
     before the next cell starts; exit 130. SIGTERM or a second Ctrl-C stops a run at once (143 / 130); one that
     comes while a cell is recorded or archived waits for that to end."""
-    status, report = 0, {}
+    status, report, walls = 0, {}, []
     with Signals("the grid stops at the next checkpoint or before the next cell") as signals:
         for i, cell in enumerate(cells, 1):
             tag = f"[{i}/{len(cells)}] {cell.tag}"
@@ -264,8 +265,13 @@ def run_cells(cells: list[Cell], dry_run: bool = False) -> tuple[int, dict]:
                     print(f"{tag}: not started (interrupted); run the same command again to go on",
                           file=sys.stderr, flush=True)
                     return 130, report
+                t0 = time.perf_counter()
                 with signals.holding():
                     code = _run_in_turn(cell, tag, dry_run, report)
+                if code == 0 and report[cell.key] in ("ran", "resumed", "extended"):
+                    walls.append(time.perf_counter() - t0)
+                    if i < len(cells):
+                        print(progress_line(walls, len(cells) - i), flush=True)
                 signals.check()
             except Stopped as err:  # outside the runs' own loops
                 print(f"{tag}: stopped by {err.who}; run the same command again to go on", file=sys.stderr,
@@ -282,6 +288,14 @@ def run_cells(cells: list[Cell], dry_run: bool = False) -> tuple[int, dict]:
                       flush=True)
                 status = status or code
     return status, report
+
+
+def progress_line(walls: list[float], left: int) -> str:
+    """How far a grid has come: the cells run in this call, their mean wall time, and what the ``left`` cells
+    after this one would take at that mean (an upper bound where some of them are done already)."""
+    mean = sum(walls) / len(walls)
+    return (f"grid: {len(walls)} cell(s) run in this call, {duration(mean)} each on average; {left} cell(s) after "
+            f"this one, at most about {duration(left * mean)} more at that rate")
 
 
 def _run_in_turn(cell: Cell, tag: str, dry_run: bool, report: dict) -> int:

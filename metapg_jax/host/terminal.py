@@ -1,4 +1,5 @@
-"""The terminal's view of a long run: a progress bar over env steps, and the process's peak memory."""
+"""The terminal's view of a long run: a progress bar over env steps, a duration as a person reads it, and the
+process's peak memory."""
 
 from __future__ import annotations
 
@@ -38,6 +39,13 @@ class Progress:
 
     def close(self) -> None:
         self.bar.close()
+
+
+def duration(seconds: float) -> str:
+    """'42 s', '12.5 min' or '3.20 h'."""
+    if seconds < 120:
+        return f"{seconds:,.0f} s"
+    return f"{seconds / 60:,.1f} min" if seconds < 7200 else f"{seconds / 3600:,.2f} h"
 
 
 def peak_rss_mib() -> float:
