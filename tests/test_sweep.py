@@ -113,3 +113,22 @@ def test_an_interrupted_sweep_resumes_to_the_numbers_of_an_uninterrupted_one(tmp
     assert strip(_rows(part)) == strip(_rows(whole))
     assert json.load(open(os.path.join(part, "summary.json"))) == json.load(open(os.path.join(whole, "summary.json")))
     assert sweep.main(["--resume", part, "--grid", "meta.lr=1"]) == 2
+
+
+def test_a_ctrl_c_between_two_groups_stops_the_sweep_before_the_next(tmp_path, monkeypatch, capsys):
+    """A Ctrl-C after a group's loop ended (while it writes its last rows) is kept by the sweep: the next group does
+    not start, exit 130, and the resume line is printed."""
+    started = []
+
+    def group_then_ctrl_c(out, g, *args, **kwargs):
+        started.append(g)
+        signal.raise_signal(signal.SIGINT)
+        return 0
+
+    monkeypatch.setattr(sweep, "run_group", group_then_ctrl_c)
+    out = str(tmp_path / "sweep")
+    assert sweep.main([*TINY, "--grid", "meta.teacher=independent,variance", "--out", out, "--no-plot"]) == 130
+    assert started == [0]
+    assert f"interrupted before group 2 of 2 started; continue with: python -m experiments.sweep --resume {out}" \
+        in capsys.readouterr().err
+    assert not os.path.exists(os.path.join(out, "summary.json"))
