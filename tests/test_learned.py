@@ -116,7 +116,13 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
             f.writelines(json.dumps(r) + "\n" for r in _cycles({0: [row] * 5, 1: [row1 or row] * 5}))
     anchors = tmp_path / "anchors.json"
     anchors.write_text(json.dumps({"tasks": {"hopper": {"random_return": 0.0, "reference_return": 1000.0}}}))
-    assert learned.main(["--results-dir", str(tmp_path / "res"), "--tasks", "hopper", "--anchors", str(anchors)]) == 0
+    argv = ["--results-dir", str(tmp_path / "res"), "--tasks", "hopper", "--anchors", str(anchors)]
+    figure = tmp_path / "res" / "meta_reward.png"
+    assert learned.main(argv + ["--no-plot"]) == 0
+    assert not figure.exists() and "meta_reward.png" not in (tmp_path / "res" / "diagnostics.md").read_text()
+    assert learned.main(argv) == 0  # the three cells with per-cycle metrics drawn in one panel
+    assert figure.stat().st_size > 10_000
+    assert "![meta reward per cycle](meta_reward.png)" in (tmp_path / "res" / "diagnostics.md").read_text()
     pred = json.loads((tmp_path / "res" / "diagnostics.json").read_text())["predictions"]["td3"]
 
     got = {(r["a"], r["b"]): r for r in pred["comparisons"]}

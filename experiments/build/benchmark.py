@@ -547,6 +547,10 @@ KEPT_FILES = {
     "NOTES.md": "how the cells ran, kept by hand: their environment, cells that shared the CPU, records of more "
                 "or fewer than one call",
     "packages.txt": "the Python environment the cells ran with (`pip freeze`)",
+    "diagnostics.md": "the learned explorers' per-cycle diagnostics and the hypotheses' predictions (and with "
+                      "`--goal` the judgement's goal), written by `python -m experiments.build.learned`",
+    "diagnostics.json": "the same, machine-readable",
+    "meta_reward.png": "the meta reward per cycle of every learned explorer's cell, drawn by the same command",
 }
 
 

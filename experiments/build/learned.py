@@ -319,6 +319,29 @@ def build(results_dir: str, tasks: list[str], students: list[str], last: int = L
             "predictions": {s: predictions(results_dir, s, tasks, cells, anchors, mine[s]) for s in students}}
 
 
+FIGURE = "meta_reward.png"
+
+
+def meta_reward_figure(results_dir: str, cells: list[dict], path: str) -> bool:
+    """``plots.plot_meta_rewards`` of the finished cells of a ``build`` report (one panel per student and task);
+    False (nothing written) when no cell is finished."""
+    from experiments.build import plots
+
+    panels: dict[tuple[str, str], dict[str, list[dict]]] = {}
+    for c in cells:
+        if c["state"] != "finished":
+            continue
+        d = os.path.join(results_dir, c["student"], "cells", task_folder(c["task"]), c["method"])
+        rows = [r for rs in read_cycles(os.path.join(d, ARCHIVE_CYCLES)).values() for r in rs]
+        panels.setdefault((STUDENT_NAMES.get(c["student"], c["student"]), task_name(c["task"])), {})[
+            _name(c["method"])] = rows
+    if not panels:
+        return False
+    plots.plot_meta_rewards(panels, path, "Meta reward per cycle (mean over seeds of a moving average over 5% "
+                                          "of the run)")
+    return True
+
+
 def _f(x, digits=2) -> str:
     return "–" if x is None or (isinstance(x, float) and not math.isfinite(x)) else stats.fmt(x, digits)
 
@@ -421,6 +444,9 @@ def markdown(report: dict) -> str:
                         f"{_f(c['mean_distance_mean'])} ± {_f(c['mean_distance_std'])}") + " | "
                      + (f"{b['seeds_over_half']} of {c['seeds']} | "
                         + ", ".join(f"{k} ({v})" for k, v in b["favourite_counts"].items()) + " |" if b else "– | – |"))
+    if report.get("figure"):
+        lines += ["", f"The meta reward over training, every finished cell (`{report['figure']}`):", "",
+                  f"![meta reward per cycle]({report['figure']})"]
     if "goal" in report:
         lines += _goal_markdown(report)
     for student, pred in report.get("predictions", {}).items():
@@ -441,6 +467,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--last", type=int, default=LAST, help=f"cycles per seed at the end of training (default {LAST})")
     p.add_argument("--goal", action="store_true",
                    help="also judge the judgement's goal against each student's baseline (module docstring)")
+    p.add_argument("--no-plot", action="store_true", help=f"do not draw {FIGURE}")
     p.add_argument("--anchors", default=None,
                    help="normalisation anchors of the equivalence margins (default results/normalisation.json; "
                         "without them nothing is judged equivalent)")
@@ -488,6 +515,8 @@ def main(argv: list[str] | None = None) -> int:
     if judged_goal is not None:
         report["goal"] = judged_goal
     report["anchors"] = os.path.relpath(anchors_path) if anchors is not None else None
+    if not a.no_plot and meta_reward_figure(a.results_dir, report["cells"], os.path.join(a.results_dir, FIGURE)):
+        report["figure"] = FIGURE
     with open(os.path.join(a.results_dir, "diagnostics.json"), "w") as f:
         json.dump(report, f, indent=1)
         f.write("\n")

@@ -61,3 +61,43 @@ def plot_cycles(rows: list[dict], panels, path: str, title: str) -> None:
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
+
+
+def plot_meta_rewards(panels: dict[tuple[str, str], dict[str, list[dict]]], path: str, title: str) -> None:
+    """Several cells' meta reward per cycle side by side: one panel per (row, column) key (e.g. student, task),
+    one line per cell in it (label -> the cell's ``cycles.jsonl`` rows): the mean over seeds of each seed's
+    moving average over ~5% of its cycles, against the fraction of the run, with a dashed line at zero. A label
+    has the same colour in every panel."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = list(dict.fromkeys(r for r, _ in panels))
+    cols = list(dict.fromkeys(c for _, c in panels))
+    labels = list(dict.fromkeys(label for cells in panels.values() for label in cells))
+    colors = {label: plt.get_cmap("tab10")(i % 10) for i, label in enumerate(labels)}
+    ncol = min(len(labels), 4)
+    legend = 0.15 + 0.2 * -(-len(labels) // ncol)  # inches below the panels for the legend's rows
+    height = 2.8 * len(rows) + legend
+    fig, axes = plt.subplots(len(rows), len(cols), figsize=(3.6 * max(len(cols), 2), height), dpi=110,
+                             squeeze=False)
+    for (r, c), cells in panels.items():
+        ax = axes[rows.index(r), cols.index(c)]
+        for label, cycle_rows in cells.items():
+            cycles, v = _per_seed(cycle_rows, "meta_reward")
+            mean = np.nanmean(_smooth(v, max(1, len(cycles) // 20)), 0)
+            ax.plot(np.arange(1, len(cycles) + 1) / len(cycles), mean, color=colors[label], lw=1.2, label=label)
+        ax.axhline(0.0, color="k", lw=0.8, ls="--")
+        ax.set_title(f"{r}, {c}", fontsize=9)
+        ax.set_xlabel("fraction of the run", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+    for r, c in ((r, c) for r in rows for c in cols if (r, c) not in panels):
+        axes[rows.index(r), cols.index(c)].set_visible(False)
+    handles = [plt.Line2D([], [], color=colors[label], lw=1.5) for label in labels]
+    fig.legend(handles, labels, loc="lower center", ncol=ncol, fontsize=8, frameon=False)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout(rect=(0, legend / height, 1, 1))
+    fig.savefig(path)
+    plt.close(fig)
