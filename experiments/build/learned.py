@@ -394,6 +394,11 @@ def _predictions_markdown(student: str, pred: dict, anchors: str | None) -> list
     return lines
 
 
+def _p_text(r: dict) -> str | None:
+    """A goal row's P(variant > baseline) with its interval, '0.37 [0.25, 0.51]'; None where it was not computed."""
+    return f"{r['p']:.2f} [{r['lo']:.2f}, {r['hi']:.2f}]" if "p" in r else None
+
+
 def _goal_markdown(report: dict) -> list[str]:
     lines = ["", "## The judgement's goal", "",
              f"Goal: {GOAL}. P(X > Y): the benchmark's probability of improvement over the tasks (`aggregate.json`, "
@@ -405,7 +410,7 @@ def _goal_markdown(report: dict) -> list[str]:
              "|---|---|---|---|---|---|---|---|"]
     for student, g in report["goal"].items():
         for r in g["variants"]:
-            p = (f"{r['p']:.2f} [{r['lo']:.2f}, {r['hi']:.2f}]" if "p" in r else "–")
+            p = _p_text(r) or "–"
             per = ", ".join(f"{task_name(t)} {x:.2f}" for t, x in r["per_task"].items()) if "p" in r else "–"
             names = lambda ts: ", ".join(task_name(t) for t in ts) or "none"
             lines.append(f"| {STUDENT_NAMES.get(student, student)} | {_name(r['method'])} | {_name(g['baseline'])} | "
@@ -526,7 +531,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"diagnostics of {done} of {len(report['cells'])} cells in {a.results_dir}/diagnostics.md")
     for student, g in (judged_goal or {}).items():
         for r in g["variants"]:
-            p = f"P = {r['p']:.2f} [{r['lo']:.2f}, {r['hi']:.2f}]" if "p" in r else "P not computed"
+            p = f"P = {_p_text(r)}" if "p" in r else "P not computed"
             print(f"goal: {STUDENT_NAMES.get(student, student)} {_name(r['method'])} against {_name(g['baseline'])}: "
                   f"{p}, worse on {len(r['worse'])} task(s): {r['outcome']}")
     return 0
