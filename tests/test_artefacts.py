@@ -97,10 +97,11 @@ def test_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, 
 # Grids built by ``python -m experiments.benchmark ... --artefacts-only`` (each one's ``--results-dir``). Their
 # manifests hold the plan (students, entries, baselines, tasks, options) the build used.
 BENCHMARK_BUILDS = ("results/exploration", "results/first-look", "results/learned/screen",
-                    "results/learned/screen-sac")
+                    "results/learned/screen-sac", "results/learned/judgement")
 
 
-@pytest.mark.parametrize("folder", BENCHMARK_BUILDS, ids=["exploration", "first-look", "screen", "screen-sac"])
+@pytest.mark.parametrize("folder", BENCHMARK_BUILDS,
+                         ids=["exploration", "first-look", "screen", "screen-sac", "judgement"])
 def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
     from experiments.build import benchmark as bench_artefacts
 
