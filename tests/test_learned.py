@@ -60,6 +60,7 @@ def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
     rewards = np.array([2.0] * 100 + [-2.0] * 100 + [2.0] * 100)
     assert np.isclose(d["meta_reward_mean"], rewards.mean()) and np.isclose(d["meta_reward_std"], rewards.std(ddof=1))
     assert np.isclose(d["meta_reward_snr"], abs(rewards.mean()) / rewards.std(ddof=1))
+    assert np.isclose(d["meta_reward_seed_std"], np.std([2.0, -2.0, 2.0], ddof=1))    # of the seeds' means
     assert np.isclose(d["distance_mean"], 0.4) and np.isclose(d["distance_std"], 0.2)
     assert d["mean_distance_mean"] is None     # a cell made before the teacher mean's distance was recorded
     b = d["bandit"]
@@ -74,7 +75,7 @@ def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
     row = next(line for line in md.splitlines() if "| bandit over noise scales |" in line)
     assert "| 3 | 3.606 | 4.000 | 0.90 |" in row and "| 2 of 3 |" in row
     rows = [line for line in md.splitlines() if line.startswith("| TD3 ")]
-    assert len(rows) == len(LEARNED_METHODS) and all(line.count("|") == 14 for line in rows)
+    assert len(rows) == len(LEARNED_METHODS) and all(line.count("|") == 15 for line in rows)
     assert "| 0.40 ± 0.20 | – |" in row
     assert sum("| not run |" in line for line in rows) == len(LEARNED_METHODS) - 1
     assert json.loads((out / "diagnostics.json").read_text())["cells"][2]["bandit"]["seeds_over_half"] == 2

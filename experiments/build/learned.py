@@ -12,7 +12,9 @@ Per (student, task, method) of ``grid.LEARNED_METHODS`` with a finished archived
   unpaired (``meta_reward_sd_unpaired``, what the difference of independent rollouts would spread), and their
   ratio (of RMS spreads, i.e. the square root of the ratio of mean variances: each cycle's variances are
   unbiased, so a pairing that changes nothing gives about 1, where a ratio of median spreads over two envs
-  would lean toward pairing); the meta reward's mean and standard deviation over cycles, and |mean| / std;
+  would lean toward pairing); the meta reward's mean and standard deviation over cycles, and |mean| / std; the
+  standard deviation over seeds of each seed's mean meta reward (what separates two cells' means: cycles of one
+  seed are not independent draws);
 * D0's distance from the student (H1): the RMS teacher-student action distance on D0 (noise included), mean ±
   std over seeds of each seed's mean; and the same for the teacher's mean alone (``teacher_mean_distance``, its
   noise left out: how far what it learned moves it; not measured in cells made before that metric existed);
@@ -148,6 +150,7 @@ def cell_diagnostics(cell_dir: str, last: int = LAST) -> dict:
     tail = {s: rows[-last:] for s, rows in read_cycles(cycles_path).items()}
     rows = [r for rs in tail.values() for r in rs]
     reward = _finite(r["meta_reward"] for r in rows)
+    seed_means = [float(np.mean(x)) for x in (_finite(r["meta_reward"] for r in rs) for rs in tail.values()) if x.size]
     paired = _rms(r.get("meta_reward_sd_paired") for r in rows)
     unpaired = _rms(r.get("meta_reward_sd_unpaired") for r in rows)
     distance = [float(np.mean(_finite(r["teacher_student_distance"] for r in rs))) for rs in tail.values()]
@@ -158,6 +161,7 @@ def cell_diagnostics(cell_dir: str, last: int = LAST) -> dict:
            "sd_ratio": paired / unpaired if paired is not None and unpaired else None,
            "meta_reward_mean": float(np.mean(reward)) if reward.size else None,
            "meta_reward_std": float(np.std(reward, ddof=1)) if reward.size > 1 else None,
+           "meta_reward_seed_std": float(np.std(seed_means, ddof=1)) if len(seed_means) > 1 else None,
            "distance_mean": float(np.mean(distance)), "distance_std": float(np.std(distance, ddof=1))
            if len(distance) > 1 else None,
            "mean_distance_mean": float(np.mean(offset)) if offset else None,
@@ -426,25 +430,26 @@ def markdown(report: dict) -> str:
              "std) over the cycle's eval envs of the per-env differences R_hat(pi') - R_hat(pi) from the same resets "
              "(paired), and of what the difference of independent rollouts would spread, sqrt(sd(R_hat(pi'))^2 + "
              "sd(R_hat(pi))^2) (unpaired); ratio: paired over unpaired (about 1 where pairing changes nothing). "
-             "Meta reward mean ± std: over the cycles; SNR = |mean| / std. Distance: "
+             "Meta reward mean ± std: over the cycles; SNR = |mean| / std; seeds' std: the standard deviation over "
+             "seeds of each seed's mean meta reward (the spread to compare two cells' means by). Distance: "
              "the RMS teacher-student action distance on D0 (actions in [-1, 1]), mean ± std over seeds of each "
              "seed's mean; of the teacher's mean: the same for the mean of its action distribution (clipped to "
              "[-1, 1]), its noise left out ('–': not recorded). Bandit: per seed the scale chosen most often and "
              "its share of the cycles.", "",
              "| student | task | method | seeds | spread paired | spread unpaired | ratio | meta reward mean ± std | "
-             "SNR | distance | of the teacher's mean | bandit: seeds whose favourite has > 1/2 | "
+             "SNR | seeds' std | distance | of the teacher's mean | bandit: seeds whose favourite has > 1/2 | "
              "bandit: favourite scales (seeds) |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for c in report["cells"]:
         head = f"| {STUDENT_NAMES.get(c['student'], c['student'])} | {task_name(c['task'])} | " \
                f"{METHOD_NAMES.get(c['method'], c['method'])} |"
         if c["state"] != "finished":
-            lines.append(head + f" {c['state']} |" + " |" * 9)
+            lines.append(head + f" {c['state']} |" + " |" * 10)
             continue
         b = c.get("bandit")
         lines.append(head + f" {c['seeds']} | {_f(c['sd_paired_rms'], 3)} | {_f(c['sd_unpaired_rms'], 3)} | "
                      f"{_f(c['sd_ratio'])} | {_f(c['meta_reward_mean'], 3)} ± {_f(c['meta_reward_std'], 3)} | "
-                     f"{_f(c['meta_reward_snr'])} | {_f(c['distance_mean'])} ± {_f(c['distance_std'])} | "
+                     f"{_f(c['meta_reward_snr'])} | {_f(c.get('meta_reward_seed_std'), 3)} | {_f(c['distance_mean'])} ± {_f(c['distance_std'])} | "
                      + ("–" if c.get("mean_distance_mean") is None else
                         f"{_f(c['mean_distance_mean'])} ± {_f(c['mean_distance_std'])}") + " | "
                      + (f"{b['seeds_over_half']} of {c['seeds']} | "
