@@ -97,11 +97,12 @@ def test_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, 
 # Grids built by ``python -m experiments.benchmark ... --artefacts-only`` (each one's ``--results-dir``). Their
 # manifests hold the plan (students, entries, baselines, tasks, options) the build used.
 BENCHMARK_BUILDS = ("results/exploration", "results/first-look", "results/learned/screen",
-                    "results/learned/screen-sac", "results/learned/judgement")
+                    "results/learned/screen-sac", "results/learned/judgement",
+                    *(f"results/learned/lookahead/steps-{n}" for n in (125, 25, 10)))
 
 
-@pytest.mark.parametrize("folder", BENCHMARK_BUILDS,
-                         ids=["exploration", "first-look", "screen", "screen-sac", "judgement"])
+@pytest.mark.parametrize("folder", BENCHMARK_BUILDS, ids=["exploration", "first-look", "screen", "screen-sac",
+                                                          "judgement", "lookahead-125", "lookahead-25", "lookahead-10"])
 def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
     from experiments.build import benchmark as bench_artefacts
 
