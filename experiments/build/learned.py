@@ -449,7 +449,8 @@ def markdown(report: dict) -> str:
         b = c.get("bandit")
         lines.append(head + f" {c['seeds']} | {_f(c['sd_paired_rms'], 3)} | {_f(c['sd_unpaired_rms'], 3)} | "
                      f"{_f(c['sd_ratio'])} | {_f(c['meta_reward_mean'], 3)} ± {_f(c['meta_reward_std'], 3)} | "
-                     f"{_f(c['meta_reward_snr'])} | {_f(c.get('meta_reward_seed_std'), 3)} | {_f(c['distance_mean'])} ± {_f(c['distance_std'])} | "
+                     f"{_f(c['meta_reward_snr'])} | {_f(c.get('meta_reward_seed_std'), 3)} | "
+                     f"{_f(c['distance_mean'])} ± {_f(c['distance_std'])} | "
                      + ("–" if c.get("mean_distance_mean") is None else
                         f"{_f(c['mean_distance_mean'])} ± {_f(c['mean_distance_std'])}") + " | "
                      + (f"{b['seeds_over_half']} of {c['seeds']} | "
