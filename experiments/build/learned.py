@@ -149,8 +149,9 @@ def cell_diagnostics(cell_dir: str, last: int = LAST) -> dict:
         config = json.load(f)["config"]
     tail = {s: rows[-last:] for s, rows in read_cycles(cycles_path).items()}
     rows = [r for rs in tail.values() for r in rs]
-    reward = _finite(r["meta_reward"] for r in rows)
-    seed_means = [float(np.mean(x)) for x in (_finite(r["meta_reward"] for r in rs) for rs in tail.values()) if x.size]
+    per_seed = [_finite(r["meta_reward"] for r in rs) for rs in tail.values()]
+    reward = np.concatenate(per_seed)
+    seed_means = [float(np.mean(x)) for x in per_seed if x.size]
     paired = _rms(r.get("meta_reward_sd_paired") for r in rows)
     unpaired = _rms(r.get("meta_reward_sd_unpaired") for r in rows)
     distance = [float(np.mean(_finite(r["teacher_student_distance"] for r in rs))) for rs in tail.values()]
@@ -449,7 +450,7 @@ def markdown(report: dict) -> str:
         b = c.get("bandit")
         lines.append(head + f" {c['seeds']} | {_f(c['sd_paired_rms'], 3)} | {_f(c['sd_unpaired_rms'], 3)} | "
                      f"{_f(c['sd_ratio'])} | {_f(c['meta_reward_mean'], 3)} ± {_f(c['meta_reward_std'], 3)} | "
-                     f"{_f(c['meta_reward_snr'])} | {_f(c.get('meta_reward_seed_std'), 3)} | "
+                     f"{_f(c['meta_reward_snr'])} | {_f(c['meta_reward_seed_std'], 3)} | "
                      f"{_f(c['distance_mean'])} ± {_f(c['distance_std'])} | "
                      + ("–" if c.get("mean_distance_mean") is None else
                         f"{_f(c['mean_distance_mean'])} ± {_f(c['mean_distance_std'])}") + " | "
@@ -537,7 +538,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"diagnostics of {done} of {len(report['cells'])} cells in {a.results_dir}/diagnostics.md")
     for student, g in (judged_goal or {}).items():
         for r in g["variants"]:
-            p = f"P = {_p_text(r)}" if "p" in r else "P not computed"
+            text = _p_text(r)
+            p = f"P = {text}" if text else "P not computed"
             print(f"goal: {STUDENT_NAMES.get(student, student)} {_name(r['method'])} against {_name(g['baseline'])}: "
                   f"{p}, worse on {len(r['worse'])} task(s): {r['outcome']}")
     return 0
