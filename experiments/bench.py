@@ -58,24 +58,19 @@ def _cold_compiles() -> None:
 
 
 def grid_strategy(name: str) -> dict:
-    """A grid method's options (``experiments.build.grid.METHODS``) as a measurement's explorer, student and
-    overrides; ``label`` (the method column) is the grid method's name."""
+    """A grid method (``experiments.build.grid.METHODS``) as a measurement's explorer, student and overrides;
+    ``label`` (the method column) is the grid method's name. The preset is the measurement's (``--presets``), also
+    for a grid method with a preset of its own."""
     from experiments.build.grid import METHODS, STUDENT_OF
 
-    opts, spec = list(METHODS[name]), {"label": name, "student": STUDENT_OF.get(name, "ddpg"), "overrides": {}}
-    shortcuts = {"--noise": "noise.kind", "--teacher": "meta.teacher"}
-    while opts:
-        opt = opts.pop(0)
-        key, _, value = opt.partition("=")
-        if key == "--method":
-            spec["method"] = value
-        elif key in shortcuts:
-            spec["overrides"][shortcuts[key]] = value
-        elif opt == "--set":
-            field, _, value = opts.pop(0).partition("=")
-            spec["overrides"][field] = value
-        else:
-            raise ValueError(f"grid method {name!r}: option {opt!r} is not one experiments.bench reads")
+    m = METHODS[name]
+    shortcuts = {"noise": "noise.kind", "teacher": "meta.teacher"}
+    unknown = [flag for flag, _ in m.flags if flag not in shortcuts]
+    if unknown:
+        raise ValueError(f"grid method {name!r}: option --{unknown[0]} is not one experiments.bench reads")
+    overrides = {shortcuts[flag]: value for flag, value in m.flags}
+    overrides.update(item.split("=", 1) for item in m.overrides)
+    spec = {"label": name, "student": STUDENT_OF.get(name, "ddpg"), "method": m.explorer, "overrides": overrides}
     return spec
 
 

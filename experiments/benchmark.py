@@ -45,6 +45,7 @@ resume).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import re
@@ -57,7 +58,8 @@ import time
 
 from experiments import reproduce
 from experiments.build import benchmark as artefacts
-from experiments.build.grid import LEARNED, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, TASKS, task_folder
+from experiments.build.grid import LEARNED, METHODS, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, TASKS, task_folder
+from experiments.grid.spec import CellSpec
 from experiments.training import grid_cells
 from metapg_jax.host.terminal import duration
 
@@ -214,40 +216,34 @@ def plan(a: argparse.Namespace) -> tuple[list[str], list[artefacts.Entry], list[
         except ImportError:
             raise ValueError("--launcher ray needs Ray: pip install -e \".[ray]\"") from None
     args = {s: student_args(a, s) for s in dict.fromkeys(e.student for e in chosen)}
-    cells = [grid_cells.Cell(args[e.student], t, e.method, None, (e.student, t, e.method),
-                             f"{e.student}/{t}/{e.method}") for t in tasks for e in chosen]
+    cells = [grid_cells.grid_cell(args[e.student], t, e.method, key=(e.student, t, e.method),
+                                  tag=f"{e.student}/{t}/{e.method}") for t in tasks for e in chosen]
     if not a.artefacts_only:
-        # Every cell's config before the first one trains: a budget that one strategy's cycle does not divide, a
-        # bad --set or a task the engine cannot step stops the benchmark here.
-        for cell in cells:
-            if grid_cells.finished_at_budget(cell.args, cell.task, cell.method):
-                continue
-            try:
-                grid_cells.requested_config(cell.args, cell.task, cell.method)
-            except ValueError as err:
-                raise ValueError(f"{cell.tag}: {err}") from None
+        # A budget that one strategy's cycle does not divide, a bad --set or a task the engine cannot step stops the
+        # benchmark here, before the first cell trains.
+        grid_cells.validate_cells(cells)
     return tasks, chosen, cells
 
 
 # ---------------------------------------------------------------------------------------------- calibration
 
-def calibration_run(args: argparse.Namespace, task: str, method: str, chunk_steps: int) -> dict:
+def calibration_run(spec: CellSpec, name: str, chunk_steps: int) -> dict:
     """Times a short run of the cell's real config (seeds, networks, replay capacity, evaluation episodes) in an
     ``experiments.run`` subprocess with a cold compile: a few chunks of ``chunk_steps`` env steps (whole cycles,
     at most the cell's evaluation interval) after any random warm-up. Returns its compile seconds, the seconds per
     env step of the steady chunks (their median; each chunk ends with one evaluation, so the evaluations weigh
     more here than in a run that evaluates less often), and its CPU utilisation (CPU seconds / wall seconds of
-    the subprocess); ``ValueError`` (one line) when the run fails."""
-    cfg = grid_cells.requested_config(args, task, method)
+    the subprocess); ``ValueError`` (one line) when the run fails. ``name``: the cell's grid method."""
+    cfg = spec.config()
     cycle = cfg.steps_per_cycle
     k = min(cfg.run.eval_every, -(-chunk_steps // cycle) * cycle)
     warm = -(-cfg.run.warmup_steps // k)  # chunks that act at random before the first update
     chunks = warm + 3
-    cal = argparse.Namespace(**{**vars(args), "steps": chunks * k, "overrides": list(args.overrides) + [
-        f"run.eval_every={k}", f"run.buffer_size={cfg.buffer_capacity}"]})
+    cal = dataclasses.replace(spec, steps=chunks * k, overrides=(
+        *spec.overrides, f"run.eval_every={k}", f"run.buffer_size={cfg.buffer_capacity}"))
     with tempfile.TemporaryDirectory(prefix="metapg-calibration-") as tmp:
         out = os.path.join(tmp, "run")
-        argv = grid_cells.cell_argv(cal, task, method, out, "new") + ["--compile-cache=off", "--quiet", "--no-plot"]
+        argv = cal.argv() + ["--out", out, "--compile-cache=off", "--quiet", "--no-plot"]
         before, t0 = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
         env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in (ROOT, os.environ.get("PYTHONPATH")) if p)}
         proc = subprocess.run([sys.executable, "-m", "experiments.run", *argv], capture_output=True, text=True,
@@ -255,7 +251,7 @@ def calibration_run(args: argparse.Namespace, task: str, method: str, chunk_step
         wall, after = time.perf_counter() - t0, resource.getrusage(resource.RUSAGE_CHILDREN)
         if proc.returncode:
             lines = (proc.stderr or proc.stdout).strip().splitlines() or [f"exit {proc.returncode}"]
-            raise ValueError(f"the calibration run of {task}/{method} failed: {lines[-1]}")
+            raise ValueError(f"the calibration run of {spec.task}/{name} failed: {lines[-1]}")
         with open(os.path.join(out, "summary.json")) as f:
             summary = json.load(f)
         seconds = {}
@@ -265,7 +261,7 @@ def calibration_run(args: argparse.Namespace, task: str, method: str, chunk_step
                 seconds.setdefault(row["chunk"], row["chunk_seconds"])
     steady = [seconds[c] for c in sorted(seconds)][warm + 1:]
     cpu = (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
-    return {"task": task, "method": method, "chunk_steps": k, "chunks": chunks, "seeds": args.seeds,
+    return {"task": spec.task, "method": name, "chunk_steps": k, "chunks": chunks, "seeds": spec.seeds,
             "compile_seconds": float(summary["compile_seconds"]),
             "seconds_per_step": statistics.median(steady) / k, "wall_seconds": round(wall, 2),
             "cpu_seconds": round(cpu, 2), "cpu_utilisation": cpu / wall if wall > 0 else 1.0}
@@ -276,9 +272,9 @@ def remaining_steps(cell: grid_cells.Cell, plan_: dict) -> int:
     chunks or an extended cell's stored steps."""
     from metapg_jax.host.checkpoint import saved_steps
 
-    budget = grid_cells.wanted_budget(cell.args, cell.task)
+    budget = cell.spec.budget()
     if plan_["state"] == "resume":
-        every = grid_cells.requested_config(cell.args, cell.task, cell.method).run.eval_every
+        every = cell.spec.config().run.eval_every
         return max(0, budget - saved_steps(os.path.join(plan_["out"], "checkpoints"))[-1] * every)
     if plan_["state"] == "extend":
         with open(os.path.join(plan_["out"], "summary.json")) as f:
@@ -296,16 +292,17 @@ def calibrate(a: argparse.Namespace, tasks: list[str], todo: list[tuple[grid_cel
     cal_task = a.calibration_task or next(t for t in ("hopper", *tasks) if t in tasks)
     wanted = {}
     for cell, _ in todo:
-        s = cell.args.student
-        wanted[(s, cal_task, cell.method)] = cell.args
+        s = cell.spec.student
+        wanted[(s, cal_task, cell.name)] = dataclasses.replace(cell.spec, task=cal_task)
         if cell.task != cal_task:
             base = STUDENT_BASELINES[s]
-            wanted[(s, cal_task, base)] = wanted[(s, cell.task, base)] = cell.args
+            for t in (cal_task, cell.task):
+                wanted[(s, t, base)] = dataclasses.replace(cell.spec, task=t, method=METHODS[base])
     measured, failures = {}, []
-    for i, ((s, t, m), args) in enumerate(wanted.items(), 1):
+    for i, ((s, t, m), spec) in enumerate(wanted.items(), 1):
         print(f"calibrating [{i}/{len(wanted)}] {s}/{t}/{m} ...", flush=True)
         try:
-            measured[(s, t, m)] = run(args, t, m, a.calibration_steps)
+            measured[(s, t, m)] = run(spec, m, a.calibration_steps)
         except ValueError as err:
             failures.append(str(err))
             print(f"  {err}", file=sys.stderr, flush=True)
@@ -315,9 +312,9 @@ def calibrate(a: argparse.Namespace, tasks: list[str], todo: list[tuple[grid_cel
               f"{r['seeds']} seeds, CPU utilisation {r['cpu_utilisation']:.2f}", flush=True)
     estimates = {}
     for cell, plan_ in todo:
-        s = cell.args.student
+        s = cell.spec.student
         base = STUDENT_BASELINES[s]
-        own = measured.get((s, cal_task, cell.method))
+        own = measured.get((s, cal_task, cell.name))
         scale = measured.get((s, cell.task, base)), measured.get((s, cal_task, base))
         if own is None or (cell.task != cal_task and None in scale):
             continue
@@ -331,7 +328,7 @@ def calibrate(a: argparse.Namespace, tasks: list[str], todo: list[tuple[grid_cel
 def dry_run(a: argparse.Namespace, tasks: list[str], cells: list[grid_cells.Cell]) -> int:
     """Prints every cell's state and command, and (unless ``--no-calibrate``) its estimated time and the total;
     returns 1 when every calibration run failed, else 0."""
-    plans = [(cell, grid_cells.plan_cell(cell.args, cell.task, cell.method)) for cell in cells]
+    plans = [(cell, grid_cells.plan_cell(cell)) for cell in cells]
     todo = [(c, p) for c, p in plans if p["argv"] is not None]
     estimates, failures = {}, []
     if todo and not a.no_calibrate:

@@ -159,16 +159,7 @@ def main(argv: list[str] | None = None) -> int:
 
             tb_events.require_tensorboard()
         if not args.artefacts_only:
-            # Every cell's config before the first one trains: a budget that one method's cycle does not
-            # divide, or a bad --set, stops the grid here rather than after the cells before it have run.
-            for task in tasks:
-                for method in methods:
-                    if grid_cells.finished_at_budget(args, task, method):
-                        continue  # skipped by run_grid whatever its config would be at this budget
-                    try:
-                        grid_cells.requested_config(args, task, method)
-                    except ValueError as err:
-                        raise ValueError(f"{task}/{method}: {err}") from None
+            grid_cells.validate_cells([grid_cells.grid_cell(args, t, m) for t in tasks for m in methods])
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2

@@ -29,6 +29,7 @@ import sys
 from experiments import ablation, reproduce
 from experiments.build import cells, stats
 from experiments.build.grid import TASK_NAMES
+from experiments.grid.spec import Method
 from experiments.training import grid_cells
 from experiments.training.screen_variants import BASELINES, CONTROL, DEFAULT_STEPS, DEFAULT_TASKS, VARIANTS
 
@@ -64,16 +65,14 @@ def reproduce_args(a: argparse.Namespace) -> argparse.Namespace:
 
 
 @functools.lru_cache(maxsize=None)
-def _options(task: str, name: str, physics: str) -> tuple[str, ...] | None:
-    """The variant's ``experiments.run`` options on ``task`` (None where its change is the task's preset already),
-    cached: ``same_as`` compares every earlier variant's options on the task."""
+def _options(task: str, name: str, physics: str) -> Method | None:
+    """The variant's method on ``task`` with its change (None where its change is the task's preset already),
+    cached: ``same_as`` compares every earlier variant's on the task."""
     from metapg_jax.config import make_config
 
     v = VARIANTS[name]
     sets = v.sets(make_config(task, "meta", physics=physics))
-    if sets is None:
-        return None
-    return (*v.method, *(x for s in sets for x in ("--set", s)))
+    return None if sets is None else v.method.setting(*sets)
 
 
 def same_as(task: str, name: str, physics: str) -> str | None:
@@ -90,40 +89,28 @@ def same_as(task: str, name: str, physics: str) -> str | None:
     return None
 
 
-def cell_options(task: str, name: str, physics: str) -> list[str] | None:
-    """The variant's ``experiments.run`` options on ``task``; None where it has no cell of its own there
-    (``same_as``)."""
-    return None if same_as(task, name, physics) is not None else list(_options(task, name, physics))
+def cell_options(task: str, name: str, physics: str) -> Method | None:
+    """The variant's method on ``task``; None where it has no cell of its own there (``same_as``)."""
+    return None if same_as(task, name, physics) is not None else _options(task, name, physics)
 
 
-def plan(a: argparse.Namespace) -> list[tuple[str, str, list[str]]]:
-    """(task, variant, options) of every cell to run, configs validated before anything trains."""
+def plan(a: argparse.Namespace) -> list[grid_cells.Cell]:
+    """Every cell to run, configs validated before anything trains."""
     tasks = reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
     names = reproduce.parse_list(a.variants, tuple(VARIANTS), "variant")
     if a.seeds <= 0 or a.steps <= 0:
         raise ValueError("--seeds and --steps must be positive")
     rargs = reproduce_args(a)
-    out = []
-    for task in tasks:
-        for name in names:
-            options = cell_options(task, name, a.physics)
-            if options is None:
-                continue
-            try:
-                grid_cells.requested_config(rargs, task, name, options)
-            except ValueError as err:
-                raise ValueError(f"{task}/{name}: {err}") from None
-            out.append((task, name, options))
+    out = [grid_cells.grid_cell(rargs, task, name, options, key=(task, name), tag=f"{task}/{name}")
+           for task in tasks for name in names if (options := cell_options(task, name, a.physics)) is not None]
+    grid_cells.validate_cells(out)
     return out
 
 
-def run_cells(a: argparse.Namespace, todo: list[tuple[str, str, list[str]]]) -> int:
+def run_cells(a: argparse.Namespace, todo: list[grid_cells.Cell]) -> int:
     """Runs the planned cells in turn (``grid_cells.run_cells``: a Ctrl-C stops the screen wherever it comes);
     returns the exit status."""
-    rargs = reproduce_args(a)
-    status, _ = grid_cells.run_cells([grid_cells.Cell(rargs, task, name, tuple(options), (task, name),
-                                                      f"{task}/{name}") for task, name, options in todo],
-                                     dry_run=a.dry_run)
+    status, _ = grid_cells.run_cells(todo, dry_run=a.dry_run)
     return status
 
 
@@ -299,7 +286,7 @@ def main(argv: list[str] | None = None) -> int:
         status = run_cells(a, todo)
     if a.dry_run:
         return status
-    tasks = list(dict.fromkeys(t for t, _, _ in todo)) or reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
+    tasks = list(dict.fromkeys(cell.task for cell in todo)) or reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
     files = write_report(a.results_dir, tasks, a.steps, a.seeds, a.physics)
     print("wrote " + ", ".join(files), flush=True)
     return status

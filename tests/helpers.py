@@ -78,13 +78,14 @@ TINY_RUN = tiny_argv("meta", **{"ddpg.batch_size": None, "run.train_steps": None
 TINY_BUFFER = ["--set", "run.buffer_size=2700"]
 
 
-def fabricate_run(path, task, method, values, steps, complete=True, visit_obs=None):
-    """A run folder like experiments.run writes: config.json, metrics.jsonl, (summary.json), (visits.npz)."""
+def fabricate_run(path, task, method, values, steps, complete=True, visit_obs=None, seed=0):
+    """A run folder like experiments.run writes: config.json, metrics.jsonl, (summary.json), (visits.npz); one seed
+    per row of ``values`` from base seed ``seed``."""
     os.makedirs(path)
     kind = "meta" if method.startswith("meta") else "ddpg"
     cfg = config_lib.make_config(task, kind, steps=int(steps[-1]) if complete else 3 * int(steps[-1]))
     run_args = {"env": task, "method": kind, "teacher": None, "preset": "paper", "noise": None,
-                "seeds": len(values), "seed": 0, "steps": None, "source": "gymnasium", "overrides": []}
+                "seeds": len(values), "seed": seed, "steps": None, "source": "gymnasium", "overrides": []}
     with open(os.path.join(path, "config.json"), "w") as f:
         json.dump({"config": config_lib.to_dict(cfg), "run_args": run_args, "jax_version": "x", "backend": "cpu",
                    "devices": ["cpu:0"]}, f)

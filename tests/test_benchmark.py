@@ -83,8 +83,8 @@ def test_the_learned_variants_are_entries_only_when_named_and_share_one_cycle_on
     tasks, chosen, cells = benchmark.plan(a)      # every cell's config validated
     assert [e.method for e in chosen] == ["td3-normal", *grid.LEARNED_METHODS, "sac-own", *grid.LEARNED_METHODS]
     for cell in cells:
-        if cell.method in grid.LEARNED_METHODS:
-            cfg = grid_cells.requested_config(cell.args, cell.task, cell.method)
+        if cell.name in grid.LEARNED_METHODS:
+            cfg = cell.spec.config()
             assert (cfg.preset, cfg.steps_per_cycle, cfg.meta.explore_steps, cfg.meta.baseline) == \
                 ("tuned", 750, 250, "paired"), cell.tag
             assert (cfg.run.train_steps, cfg.meta.lookahead_steps, cfg.meta.teacher_steps) == (375, 125, 1), cell.tag
@@ -96,7 +96,8 @@ def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_r
     argv = ["--tasks", "pendulum,reacher", "--students", "td3,sac", "--strategies", "td3-normal,td3-pink,sac-own",
             "--seeds", "2", "--steps", "900", "--runs-dir", str(runs), "--results-dir", str(results), *TINY]
     steps = np.array([300, 600, 900])
-    fabricate_run(runs / "td3" / "paper" / "pendulum" / "td3-normal", "pendulum", "td3-normal", np.zeros((2, 3)), steps)
+    fabricate_run(runs / "td3" / "paper" / "pendulum" / "td3-normal", "pendulum", "td3-normal", np.zeros((2, 3)), steps,
+                  seed=1000)
     killed = runs / "td3" / "paper" / "pendulum" / "td3-pink"  # killed after its first checkpoint (chunk 1)
     fabricate_run(killed, "pendulum", "td3-pink", np.zeros((2, 1)), steps[:1], complete=False)
     (killed / "checkpoints" / "1").mkdir(parents=True)
@@ -104,7 +105,8 @@ def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_r
     empty.mkdir(parents=True)
     (empty / "config.json").write_text("{}")
     # Finished in an earlier clone: only the archive holds it.
-    fabricate_run(results / "sac" / "cells" / "reacher" / "sac-own", "reacher", "sac-own", np.zeros((2, 3)), steps)
+    fabricate_run(results / "sac" / "cells" / "reacher" / "sac-own", "reacher", "sac-own", np.zeros((2, 3)), steps,
+                  seed=1000)
     assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 0
     out = capsys.readouterr().out
     assert "td3/pendulum/td3-normal [done] done, skipped: final return 0.0" in out
@@ -119,14 +121,14 @@ def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_r
                 ("reacher", "td3-normal"): (30.0, 4e-3), ("pendulum", "sac-own"): (5.0, 1e-3)}
     calls = []
 
-    def fake_run(args, task, method, chunk_steps):
-        calls.append((args.student, task, method, chunk_steps))
-        compile_s, per_step = measured[(task, method)]
+    def fake_run(spec, method, chunk_steps):
+        calls.append((spec.student, spec.task, method, chunk_steps))
+        compile_s, per_step = measured[(spec.task, method)]
         return {"compile_seconds": compile_s, "seconds_per_step": per_step, "cpu_utilisation": 1.5, "seeds": 2}
 
     a = benchmark.build_parser().parse_args(argv + ["--dry-run", "--calibration-steps", "600"])
     tasks, chosen, cells = benchmark.plan(a)
-    todo = [(c, p) for c, p in ((c, grid_cells.plan_cell(c.args, c.task, c.method)) for c in cells) if p["argv"]]
+    todo = [(c, p) for c, p in ((c, grid_cells.plan_cell(c)) for c in cells) if p["argv"]]
     estimates, _, failures = benchmark.calibrate(a, tasks, todo, run=fake_run)
     assert not failures and sorted(calls) == sorted([("td3", "pendulum", "td3-normal", 600),
                                                      ("td3", "pendulum", "td3-pink", 600),

@@ -45,7 +45,7 @@ def test_reproduce_checks_every_cell_before_the_first_runs(tmp_path, capsys):
     summary = json.loads((cell / "summary.json").read_text())
     (cell / "summary.json").write_text(json.dumps({**summary, "final_return_mean": 0.0,
                                                    "final_return_std": 0.0}))
-    assert reproduce.main([*base, "--methods", "ddpg-paramnoise,meta-independent", "--steps", "1000",
+    assert reproduce.main([*base, "--methods", "ddpg-paramnoise,meta-independent", "--steps", "1000", "--seeds", "2",
                            "--dry-run"]) == 0
     assert "grid: 1 skipped, 1 would new" in capsys.readouterr().out
 
@@ -205,11 +205,11 @@ def test_reproduce_on_the_c_engine_keeps_its_own_folders(tmp_path, capsys, monke
 
 
 def test_tensorboard_is_passed_to_every_cell_and_needs_its_extra(monkeypatch, tmp_path, capsys):
-    args = reproduce.build_parser().parse_args(["--tensorboard", "--tasks", "pendulum"])
+    cell = grid_cells.grid_cell(reproduce.build_parser().parse_args(["--tensorboard"]), "pendulum", "meta-independent")
     for state in ("new", "resume", "extend"):
-        assert "--tensorboard" in grid_cells.cell_argv(args, "pendulum", "meta-independent", str(tmp_path), state)
-    assert "--tensorboard" not in grid_cells.cell_argv(reproduce.build_parser().parse_args([]), "pendulum",
-                                                      "meta-independent", str(tmp_path), "new")
+        assert "--tensorboard" in grid_cells.cell_argv(cell, str(tmp_path), state)
+    plain = grid_cells.grid_cell(reproduce.build_parser().parse_args([]), "pendulum", "meta-independent")
+    assert "--tensorboard" not in grid_cells.cell_argv(plain, str(tmp_path), "new")
     monkeypatch.setitem(sys.modules, "tensorboardX", None)  # the extra not installed
     runs = tmp_path / "runs"
     assert reproduce.main(["--tensorboard", "--tasks", "pendulum", "--runs-dir", str(runs),
@@ -273,7 +273,8 @@ def test_a_ctrl_c_between_two_cells_stops_the_grid_also_when_started_in_the_back
 
     ran, started = [], []
 
-    def run_cell(args, task, method, plan):  # a run: its own loop's signals, then the grid's archive
+    def run_cell(cell, plan):  # a run: its own loop's signals, then the grid's archive
+        method = cell.name
         with runner.Signals() as loop:
             started.append((method, loop.requested))
         ran.append(method)
@@ -281,14 +282,14 @@ def test_a_ctrl_c_between_two_cells_stops_the_grid_also_when_started_in_the_back
             signal.raise_signal(signal.SIGINT)  # while the finished cell is archived
         return 130 if loop.requested else 0
 
-    def plan_cell(args, task, method, options=None):
-        if method == "c":
+    def plan_cell(cell):
+        if cell.name == "c":
             signal.raise_signal(signal.SIGINT)  # while the next cell is planned
         return {"argv": ["--x"], "state": "new", "archived": "nowhere", "message": "new"}
 
     monkeypatch.setattr(grid_cells, "run_cell", run_cell)
     monkeypatch.setattr(grid_cells, "plan_cell", plan_cell)
-    cells_ = lambda *ms: [grid_cells.Cell(None, "pendulum", m, None, m, m) for m in ms]
+    cells_ = lambda *ms: [grid_cells.Cell(None, None, m, m, m) for m in ms]
     old = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         assert grid_cells.run_cells(cells_("a", "b")) == (130, {"a": "ran"})
@@ -303,8 +304,8 @@ def test_a_ctrl_c_between_two_cells_stops_the_grid_also_when_started_in_the_back
         assert "[2/3] c: interrupted; run the same command again to resume" in capsys.readouterr().err
         ran.clear()
 
-        def terminated_while_archived(args, task, method, plan):  # the record and archive end first
-            ran.append(method)
+        def terminated_while_archived(cell, plan):  # the record and archive end first
+            ran.append(cell.name)
             signal.raise_signal(signal.SIGTERM)
             return 0
 

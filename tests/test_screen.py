@@ -20,8 +20,9 @@ TINY = ["run.eval_every=300", "ddpg.hidden=16,16", "meta.hidden=16,16", "run.eva
         "meta.visit_samples=64", "ddpg.batch_size=16", "run.buffer_size=900"]
 
 
-def _config(task, options):
-    argv = [f"--env={task}", *options, "--preset=paper", "--physics=mujoco", "--steps=300000", "--out=/dev/null"]
+def _config(task, method):
+    argv = [f"--env={task}", *method.options(), "--preset=paper", "--physics=mujoco", "--steps=300000",
+            "--out=/dev/null"]
     return config_from_run_args(run_args(build_parser().parse_args(argv)))
 
 

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import re
 
+from experiments.grid.spec import method
+
 # In the paper's Table 2 order.
 TASKS = ("inverted_double_pendulum", "inverted_pendulum", "hopper", "pendulum", "halfcheetah", "reacher")
 TASK_NAMES = {"pendulum": "Pendulum", "inverted_pendulum": "InvertedPendulum",
@@ -19,52 +21,52 @@ TASK_NAMES = {"pendulum": "Pendulum", "inverted_pendulum": "InvertedPendulum",
 # rollout of pi 125 steps from the same resets in 2 envs each; 750 stored steps, a third of them D0 (as the paper
 # preset's cycle); a look-ahead of half an update per D0 step (as the paper preset on every task); 20 cycles per
 # 15,000-step evaluation interval. The tuned preset adds one teacher step and student updates for half the cycle.
-PAIRED_CYCLE = ("--set", "meta.baseline=paired", "--set", "meta.eval_envs=2", "--set", "meta.explore_steps=250",
-                "--set", "meta.eval_steps=125", "--set", "meta.lookahead_steps=125")
-# Grid method name -> experiments.run options.
+PAIRED_CYCLE = ("meta.baseline=paired", "meta.eval_envs=2", "meta.explore_steps=250", "meta.eval_steps=125",
+                "meta.lookahead_steps=125")
+# Grid method name -> how its cells explore (``experiments.grid.spec.Method``: experiments.run's --method, its
+# shortcuts, --set overrides, a preset of its own).
 METHODS = {
-    "meta-independent": ["--method=meta", "--teacher=independent"],
-    "meta-variance": ["--method=meta", "--teacher=variance"],
-    "ddpg-paramnoise": ["--method=ddpg", "--noise=adaptive-param"],
-    "ddpg-normal": ["--method=ddpg", "--noise=normal"],
+    "meta-independent": method("meta", teacher="independent"),
+    "meta-variance": method("meta", teacher="variance"),
+    "ddpg-paramnoise": method("ddpg", noise="adaptive-param"),
+    "ddpg-normal": method("ddpg", noise="normal"),
     # TD3's own exploration: Gaussian action noise 0.1 (Fujimoto et al. 2018; the paper preset's normal noise is 0.2).
-    "td3-normal": ["--method=ddpg", "--noise=normal", "--set", "noise.stddev=0.1"],
+    "td3-normal": method("ddpg", "noise.stddev=0.1", noise="normal"),
     # Colored (pink, beta 1) noise at TD3's scale 0.1 (Eberhard et al., 2023), and FastTD3's per-episode scales
     # sigma ~ U[0.001, 0.4] (metapg_jax/strategies/pink.py, mixed.py).
-    "td3-pink": ["--method=ddpg", "--noise=pink", "--set", "noise.stddev=0.1"],
-    "td3-mixed": ["--method=ddpg", "--noise=mixed"],
+    "td3-pink": method("ddpg", "noise.stddev=0.1", noise="pink"),
+    "td3-mixed": method("ddpg", noise="mixed"),
     # Ornstein-Uhlenbeck noise with OpenAI baselines' (2018) theta 0.15 and dt 0.01 (the noise group's defaults,
     # docs/strategies.md) at TD3's scale sigma 0.1, so that TD3's action noises differ in their process only.
-    "td3-ou": ["--method=ddpg", "--noise=ou", "--set", "noise.stddev=0.1"],
+    "td3-ou": method("ddpg", "noise.stddev=0.1", noise="ou"),
     # Adaptive parameter noise (Plappert et al., 2018) with the action-space target 0.1, TD3's Gaussian scale
     # (the paper preset's DDPG baseline, ddpg-paramnoise, targets baselines' 0.2).
-    "td3-paramnoise": ["--method=ddpg", "--noise=adaptive-param", "--set", "noise.stddev=0.1"],
-    # The tuned teacher: the screen's schedule (--preset=tuned, METHOD_PRESETS), whatever the grid's preset.
-    "meta-tuned": ["--method=meta", "--teacher=independent"],
+    "td3-paramnoise": method("ddpg", "noise.stddev=0.1", noise="adaptive-param"),
+    # The tuned teacher: the screen's schedule (--preset=tuned), whatever the grid's preset.
+    "meta-tuned": method("meta", preset="tuned", teacher="independent"),
     # SAC explores with its own policy, its sampling noise white or colored (metapg_jax/strategies/own.py).
-    "sac-own": ["--method=own"],
-    "sac-pink": ["--method=own", "--noise=pink"],
+    "sac-own": method("own"),
+    "sac-pink": method("own", noise="pink"),
     # The paper's teacher collecting a SAC student's data (the student itself never acts during training).
-    "sac-meta": ["--method=meta", "--teacher=independent"],
+    "sac-meta": method("meta", teacher="independent"),
     # Learned exploration, second attempt (results/learned/README.md; LEARNED): teacher designs and controls under
-    # the tuned schedule (METHOD_PRESETS) with the paired meta reward, all in one cycle (PAIRED_CYCLE).
+    # the tuned schedule (preset tuned) with the paired meta reward, all in one cycle (PAIRED_CYCLE).
     # The paper's teacher with the paired meta reward, learning at 1e-3 (as the residual teacher, below).
-    "learned-paired": ["--method=meta", "--teacher=independent", "--set", "meta.lr=1e-3", *PAIRED_CYCLE],
+    "learned-paired": method("meta", "meta.lr=1e-3", *PAIRED_CYCLE, preset="tuned", teacher="independent"),
     # The residual teacher starts as the student with TD3's Gaussian noise 0.1 (log-std -2.3), and learns at 1e-3:
     # at the paper's 1e-4, 400 one-step cycles move each weight by at most ~0.04 (Adam's steps are ~lr).
-    "learned-residual": ["--method=meta", "--teacher=residual", "--set", "meta.init_log_std=-2.3", "--set",
-                         "meta.lr=1e-3", *PAIRED_CYCLE],
-    "learned-bandit": ["--method=meta", "--teacher=bandit", *PAIRED_CYCLE],
+    "learned-residual": method("meta", "meta.init_log_std=-2.3", "meta.lr=1e-3", *PAIRED_CYCLE, preset="tuned",
+                               teacher="residual"),
+    "learned-bandit": method("meta", *PAIRED_CYCLE, preset="tuned", teacher="bandit"),
     # Controls in the same cycle: the paper's teacher frozen at its initialisation; D0 uniformly random; the student
     # with TD3's Gaussian noise 0.1; the student alone.
-    "control-frozen": ["--method=meta", "--teacher=independent", "--set", "meta.lr=0", *PAIRED_CYCLE],
-    "control-uniform": ["--method=meta", "--teacher=uniform", *PAIRED_CYCLE],
-    "control-fixed": ["--method=meta", "--teacher=bandit", "--set", "bandit.scales=0.1", *PAIRED_CYCLE],
-    "control-noiseless": ["--method=meta", "--teacher=bandit", "--set", "bandit.scales=0", *PAIRED_CYCLE],
+    "control-frozen": method("meta", "meta.lr=0", *PAIRED_CYCLE, preset="tuned", teacher="independent"),
+    "control-uniform": method("meta", *PAIRED_CYCLE, preset="tuned", teacher="uniform"),
+    "control-fixed": method("meta", "bandit.scales=0.1", *PAIRED_CYCLE, preset="tuned", teacher="bandit"),
+    "control-noiseless": method("meta", "bandit.scales=0", *PAIRED_CYCLE, preset="tuned", teacher="bandit"),
 }
-# A grid method that runs under a preset of its own, overriding the grid's (``experiments.reproduce --preset``, the
-# benchmark's): its cells get ``--preset=<this>`` (experiments.training.grid_cells.cell_argv).
-METHOD_PRESETS = {"meta-tuned": "tuned", **{m: "tuned" for m in METHODS if m.startswith(("learned-", "control-"))}}
+# The grid methods that run under a preset of their own, overriding the grid's (``CellSpec.run_preset``).
+METHOD_PRESETS = {name: m.preset for name, m in METHODS.items() if m.preset}
 METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta (variance)",
                 "ddpg-paramnoise": "DDPG (param noise)", "ddpg-normal": "DDPG (normal noise)",
                 "td3-normal": "TD3 (normal noise)", "td3-pink": "TD3 (pink noise)", "td3-mixed": "TD3 (mixed scales)",
@@ -119,7 +121,7 @@ def task_folder(task: str) -> str:
 
 def noise_methods(methods) -> list[str]:
     """The methods among ``methods`` that explore with noise, not a teacher (``--method=ddpg`` or ``own``)."""
-    return [m for m in methods if {"--method=ddpg", "--method=own"} & set(METHODS.get(m, ()))]
+    return [m for m in methods if m in METHODS and METHODS[m].explorer in ("ddpg", "own")]
 
 
 def methods_for(student: str = "ddpg") -> tuple[str, ...]:

@@ -15,33 +15,53 @@ import time
 from typing import NamedTuple
 
 from experiments.build.cells import archive_cell, archive_dir_for, read_json
-from experiments.build.grid import METHOD_PRESETS, METHODS, baseline_for, task_folder
+from experiments.build.grid import METHODS, baseline_for, task_folder
+from experiments.grid.spec import CellSpec, Method
 from experiments.training.args import RUN_ARGS
 from metapg_jax.host.runner import Signals, Stopped
 from metapg_jax.host.terminal import duration
 
 
 class Cell(NamedTuple):
-    """One cell to plan and run: the grid's options (``experiments.reproduce``'s parser: folders, preset, student,
-    seeds, budget, overrides, launcher), the task, the grid method and its run options (None: ``METHODS[method]``);
-    ``key``: how the report returned by ``run_cells`` names it; ``tag``: how the progress lines name it."""
+    """One cell to plan and run: its run (``spec``, typed data: ``experiments.grid.spec.CellSpec``), the grid's
+    options (``experiments.reproduce``'s parser: folders, the preset's folder, the student's baseline, how a run is
+    run: checkpoint cadence, progress bars, TensorBoard, Ray), the name of its folder (the grid method or the
+    variant); ``key``: how the report returned by ``run_cells`` names it; ``tag``: how the progress lines name it."""
 
     args: argparse.Namespace
-    task: str
-    method: str
-    options: tuple[str, ...] | None = None
+    spec: CellSpec
+    name: str
     key: tuple = ()
     tag: str = ""
 
+    @property
+    def task(self) -> str:
+        return self.spec.task
 
-def grid_cell(args: argparse.Namespace, task: str, method: str, options=None) -> Cell:
-    """A task x method grid's cell, named (task, method) in the report and ``<preset>/<task>/<method>`` in the lines."""
-    return Cell(args, task, method, None if options is None else tuple(options), (task, method),
-                f"{args.preset}/{task}/{method}")
+
+def grid_spec(args: argparse.Namespace, task: str, name: str, method: Method | None = None) -> CellSpec:
+    """The run of a grid's cell: the grid's options (``experiments.reproduce``'s) with ``method``, else the grid
+    method ``name``'s (``METHODS``)."""
+    return CellSpec(task, METHODS[name] if method is None else method, preset=args.preset, student=args.student,
+                    seeds=args.seeds, seed=args.seed, steps=args.steps, source=args.source, physics=args.physics,
+                    overrides=tuple(args.overrides))
+
+
+def grid_cell(args: argparse.Namespace, task: str, name: str, method: Method | None = None,
+              key: tuple | None = None, tag: str | None = None) -> Cell:
+    """A grid's cell, named (task, method) in the report and ``<preset>/<task>/<method>`` in the lines unless
+    ``key``/``tag`` say otherwise."""
+    return Cell(args, grid_spec(args, task, name, method), name, (task, name) if key is None else key,
+                f"{args.preset}/{task}/{name}" if tag is None else tag)
 
 
 def cell_dir(runs_dir: str, preset: str, task: str, method: str) -> str:
     return os.path.join(runs_dir, preset, task_folder(task), method)
+
+
+def run_dir(cell: Cell) -> str:
+    """The cell's run folder: ``<runs-dir>/<preset>/<task>/<name>``."""
+    return cell_dir(cell.args.runs_dir, cell.args.preset, cell.task, cell.name)
 
 
 def cell_state(path: str) -> str:
@@ -58,50 +78,26 @@ def cell_state(path: str) -> str:
     return "new"
 
 
-def finished_at_budget(args: argparse.Namespace, task: str, method: str) -> bool:
+def finished_at_budget(cell: Cell) -> bool:
     """Whether the cell's run folder or its archived copy finished at (at least) the requested budget."""
-    wanted = wanted_budget(args, task)
-    for path in (cell_dir(args.runs_dir, args.preset, task, method), archived_dir(args, task, method)):
+    wanted = cell.spec.budget()
+    for path in (run_dir(cell), archived_dir(cell)):
         summary = read_json(os.path.join(path, "summary.json"))
         if summary and summary["env_steps"] >= wanted:
             return True
     return False
 
 
-def archived_dir(args: argparse.Namespace, task: str, method: str) -> str:
-    """Where a finished cell is archived: ``<results>/cells/<task>/<method>`` (``cells.archive_dir_for``)."""
-    return os.path.join(archive_dir_for(args.results_dir, args.preset), task_folder(task), method)
+def archived_dir(cell: Cell) -> str:
+    """Where a finished cell is archived: ``<results>/cells/<task>/<name>`` (``cells.archive_dir_for``)."""
+    return os.path.join(archive_dir_for(cell.args.results_dir, cell.args.preset), task_folder(cell.task), cell.name)
 
 
-def cell_preset(args: argparse.Namespace, method: str) -> str:
-    """The preset a cell runs under: the grid method's own (``METHOD_PRESETS``: the tuned teacher), else the grid's."""
-    return METHOD_PRESETS.get(method, args.preset)
-
-
-def wanted_budget(args: argparse.Namespace, task: str) -> int:
-    """The requested env steps per seed: ``--steps``, else the paper's budget for the task (as make_config)."""
-    from envs import default_budget
-
-    return default_budget(task) if args.steps is None else args.steps
-
-
-def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state: str,
-              options: list[str] | None = None) -> list[str]:
+def cell_argv(cell: Cell, out: str, state: str) -> list[str]:
     """The explicit ``experiments.run`` options of a cell (the same for a fresh start and a resume; an
-    extension names the new budget). ``options`` replaces the grid method's ``METHODS[method]`` (a grid of
-    other variants, e.g. ``experiments.screen``'s). The preset is ``cell_preset``'s: a grid method with a preset
-    of its own keeps it whatever the grid's."""
-    options = METHODS[method] if options is None else options
-    argv = [f"--env={task}", *options, f"--preset={cell_preset(args, method)}", f"--seeds={args.seeds}",
-            f"--seed={args.seed}", f"--source={args.source}"]
-    if task != "pendulum":  # named always: experiments.run's own default, 'auto', depends on the backend
-        argv.append(f"--physics={args.physics}")
-    if args.student != RUN_ARGS["student"]:  # named when it is not experiments.run's default
-        argv.append(f"--student={args.student}")
-    if args.steps is not None or state == "extend":
-        argv.append(f"--steps={wanted_budget(args, task)}")
-    for item in args.overrides:
-        argv += ["--set", item]
+    extension names the new budget): its run's (``CellSpec.argv``), then how the grid runs it, then the folder."""
+    args = cell.args
+    argv = cell.spec.argv(explicit_steps=state == "extend")
     if args.no_plot:
         argv.append("--no-plot")
     if args.quiet:
@@ -119,13 +115,30 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
     return argv
 
 
-def requested_config(args: argparse.Namespace, task: str, method: str, options: list[str] | None = None):
-    """The config a fresh run of this cell at the requested budget gets (validated)."""
-    from experiments import run as run_lib
-    from experiments.training import args as training_args
+def stored_elsewhere(cell: Cell, path: str) -> str:
+    """Why a finished run folder or archived copy is not this cell's run ('' when it is): it was run with other
+    seeds or another base seed (its numbers would be taken for the requested cell's)."""
+    stored = read_json(os.path.join(path, "config.json")).get("run_args") or {}
+    changed = [f"{k} {stored[k]} (requested {getattr(cell.spec, k)})" for k in ("seeds", "seed")
+               if k in stored and stored[k] != getattr(cell.spec, k)]
+    return f"stored with {', '.join(changed)}" if changed else ""
 
-    parsed = run_lib.build_parser().parse_args(cell_argv(args, task, method, os.devnull, "new", options))
-    return training_args.config_from_run_args(training_args.run_args(parsed))
+
+def validate_cells(cells: list[Cell]) -> None:
+    """Every cell's config before the first one trains: a budget that one method's cycle does not divide, a bad
+    ``--set``, a task the engine cannot step, or a finished cell stored with other seeds stops the grid here
+    (``ValueError``, one line naming the cell) rather than after the cells before it have run."""
+    for cell in cells:
+        for path in (run_dir(cell), archived_dir(cell)):
+            if os.path.exists(os.path.join(path, "summary.json")) and stored_elsewhere(cell, path):
+                raise ValueError(f"{cell.tag}: {path} holds a finished run {stored_elsewhere(cell, path)}; move it "
+                                 "away or give the grid other --runs-dir/--results-dir")
+        if finished_at_budget(cell):
+            continue  # skipped whatever its config would be at this budget
+        try:
+            cell.spec.config()
+        except ValueError as err:
+            raise ValueError(f"{cell.tag}: {err}") from None
 
 
 def write_cell_record(out: str, argv: list[str], status: int, seconds: float, started: dict,
@@ -167,16 +180,15 @@ def write_cell_record(out: str, argv: list[str], status: int, seconds: float, st
         **({"cpu_seconds": round(sum(cpu), 2), "cpu_seconds_calls": len(cpu)} if cpu else {}), "calls": calls})
 
 
-def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[str] | None = None) -> dict:
+def plan_cell(cell: Cell) -> dict:
     """What the grid does with a cell now: {"state": done|new|restart|resume|extend, "out", "archived",
-    "argv" (None when done), "message"} (the state on disk decides, so a retried cell resumes).
-    ``options``: the cell's run options instead of ``METHODS[method]`` (``cell_argv``)."""
-    out = cell_dir(args.runs_dir, args.preset, task, method)
+    "argv" (None when done), "message"} (the state on disk decides, so a retried cell resumes)."""
+    out = run_dir(cell)
     state = cell_state(out)
-    archived = archived_dir(args, task, method)
+    archived = archived_dir(cell)
     if state == "new" and os.path.exists(os.path.join(archived, "summary.json")):
         out, state = archived, "done"  # finished in an earlier clone; its run folder is not committed
-    wanted = wanted_budget(args, task)
+    wanted = cell.spec.budget()
     s = {}
     if state == "done":
         with open(os.path.join(out, "summary.json")) as f:
@@ -186,7 +198,7 @@ def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[st
 
         if s["env_steps"] < wanted and out != archived and saved_steps(os.path.join(out, "checkpoints")):
             stored_every = read_json(os.path.join(out, "config.json"))["config"]["run"]["eval_every"]
-            wanted_every = requested_config(args, task, method, options).run.eval_every
+            wanted_every = cell.spec.config().run.eval_every
             if stored_every == wanted_every:
                 state = "extend"  # a finished shorter run: continue it to the requested budget
     if state == "done":
@@ -204,6 +216,8 @@ def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[st
                     f"to extend it from is stored; delete it to rerun)")
         else:
             note = f" (stored budget {s['env_steps']:,} is above the requested {wanted:,}; delete it to rerun)"
+        if stored_elsewhere(cell, out):
+            note += f" (not this grid's run: {stored_elsewhere(cell, out)})"
         from experiments.build import stats
         from metapg_jax.host import metric_rows, runfiles
 
@@ -211,14 +225,14 @@ def plan_cell(args: argparse.Namespace, task: str, method: str, options: list[st
         final = stats.run_summary(*metric_rows.curves(runfiles.read_jsonl(os.path.join(out, "metrics.jsonl"))))
         message = f"done, skipped: {stats.describe_final(final)}, {s['env_steps']:,} steps{note}"
         return {"state": state, "out": out, "archived": archived, "argv": None, "message": message}
-    argv = cell_argv(args, task, method, out, state, options)
+    argv = cell_argv(cell, out, state)
     verb = f"extending from {s['env_steps']:,} to {wanted:,} steps" if state == "extend" else \
         {"resume": "resuming", "restart": "restarting (no checkpoint stored)", "new": "running"}[state]
     return {"state": state, "out": out, "archived": archived, "argv": argv,
             "message": f"{verb}: python -m experiments.run {shlex.join(argv)}"}
 
 
-def run_cell(args: argparse.Namespace, task: str, method: str, plan: dict) -> int:
+def run_cell(cell: Cell, plan: dict) -> int:
     """Runs a planned cell (``experiments.run.main``), records it in ``reproduce.json`` and archives it when
     it finished; returns the run's exit status. Called in this process, or in a Ray worker."""
     from experiments import run as run_lib
@@ -233,7 +247,7 @@ def run_cell(args: argparse.Namespace, task: str, method: str, plan: dict) -> in
         code = 130
     if os.path.isdir(out):
         write_cell_record(out, argv, code, time.perf_counter() - t0, started, diff, time.process_time() - cpu0)
-        archive_cell(out, plan["archived"], method, baseline_for(args.preset, args.student))
+        archive_cell(out, plan["archived"], cell.name, baseline_for(cell.args.preset, cell.args.student))
     return code
 
 
@@ -300,12 +314,12 @@ def progress_line(walls: list[float], left: int) -> str:
 
 def _run_in_turn(cell: Cell, tag: str, dry_run: bool, report: dict) -> int:
     """``run_cells``'s one cell: planned, run (unless done or ``dry_run``) and reported; its exit status."""
-    plan = plan_cell(cell.args, cell.task, cell.method, cell.options)
+    plan = plan_cell(cell)
     print(f"{tag}: {plan['message']}", flush=True)
     if plan["argv"] is None or dry_run:
         report[cell.key] = "skipped" if plan["argv"] is None else f"would {plan['state']}"
         return 0
-    code = run_cell(cell.args, cell.task, cell.method, plan)
+    code = run_cell(cell, plan)
     if code == 0 and os.path.exists(os.path.join(plan["archived"], "summary.json")):
         print(f"{tag}: finished; results archived in {plan['archived']}", flush=True)
     report[cell.key] = outcome(plan, code)
@@ -316,10 +330,10 @@ def _ray_cell(cell: Cell, cwd: str) -> tuple[dict, int]:
     """A cell as a Ray task: planned again from what is on disk (a task retried after its worker died
     resumes from the cell's last checkpoint), then ``run_cell``."""
     os.chdir(cwd)  # the grid's folders are relative to the driver's working directory
-    plan = plan_cell(cell.args, cell.task, cell.method, cell.options)
+    plan = plan_cell(cell)
     if plan["argv"] is None:
         return plan, 0
-    return plan, run_cell(cell.args, cell.task, cell.method, plan)
+    return plan, run_cell(cell, plan)
 
 
 def run_grid_ray(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
@@ -338,7 +352,7 @@ def run_cells_ray(cells: list[Cell], launcher: argparse.Namespace) -> tuple[int,
     tags = {cell.key: f"[{i}/{len(cells)}] {cell.tag}" for i, cell in enumerate(cells, 1)}
     pending = []
     for cell in cells:
-        plan = plan_cell(cell.args, cell.task, cell.method, cell.options)
+        plan = plan_cell(cell)
         print(f"{tags[cell.key]}: "
               f"{plan['message'] if plan['argv'] is None else 'submitted to Ray: ' + plan['message']}", flush=True)
         if plan["argv"] is None:

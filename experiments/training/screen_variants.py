@@ -7,6 +7,7 @@ import dataclasses
 from typing import Callable
 
 from experiments.build.grid import METHODS
+from experiments.grid.spec import Method, method
 
 CONTROL = "paper-teacher"
 BASELINES = ("ddpg-paramnoise", "ddpg-normal")
@@ -21,7 +22,7 @@ class Variant:
     change: str  # in words
     hypothesis: str
     sets: Callable  # (paper-preset Meta config of the task) -> list of "group.field=value", None = no-op here
-    method: tuple[str, ...] = ("--method=meta", "--teacher=independent")
+    method: Method = method("meta", teacher="independent")
 
 
 def _ddpg_ratio(cfg) -> list[str] | None:
@@ -51,10 +52,10 @@ VARIANTS: dict[str, Variant] = {
         "Control: Algorithm 1 with the paper preset's schedule.", lambda cfg: []),
     "ddpg-paramnoise": Variant(
         "DDPG (param noise)", "no teacher: adaptive parameter noise 0.2 (the paper's baseline)",
-        "Baseline.", lambda cfg: [], tuple(METHODS["ddpg-paramnoise"])),
+        "Baseline.", lambda cfg: [], METHODS["ddpg-paramnoise"]),
     "ddpg-normal": Variant(
         "DDPG (normal noise)", "no teacher: Gaussian action noise 0.2",
-        "Baseline.", lambda cfg: [], tuple(METHODS["ddpg-normal"])),
+        "Baseline.", lambda cfg: [], METHODS["ddpg-normal"]),
     "one-teacher-step": Variant(
         "1 teacher step per cycle", "`meta.teacher_steps=1` (HalfCheetah's preset: 100)",
         "100 Adam steps on one scalar meta reward per cycle overfit the teacher to that sample's noise and "
@@ -67,7 +68,7 @@ VARIANTS: dict[str, Variant] = {
         "The independent teacher starts as a network of its own and barely moves at the paper's learning rate, so "
         "D0 holds actions far from the student's (RMS distance ~0.8-1.0 of the action range on Hopper): data about "
         "a policy the student is not. Exploring around the student's action makes D0 informative for it.",
-        lambda cfg: [], ("--method=meta", "--teacher=variance")),
+        lambda cfg: [], method("meta", teacher="variance")),
     "teacher-lr-1e-3": Variant(
         "teacher lr 1e-3", "`meta.lr=1e-3` (paper 1e-4)",
         "At 1e-4 with one REINFORCE step per cycle the teacher's log-std moves from -0.50 to about -0.40 in 300k "

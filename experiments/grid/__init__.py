@@ -1,0 +1,1 @@
+"""The grid engine's data: a cell as typed data (``spec``: ``Method``, ``CellSpec``)."""

@@ -1,0 +1,67 @@
+"""A grid's cell as typed data (``experiments.grid.spec``): its config is the one its command line gives, and a
+grid refuses a finished cell stored with other seeds."""
+
+import os
+
+from experiments import reproduce
+from experiments import run as run_lib
+from experiments.build.grid import METHODS, STUDENT_OF
+from experiments.grid.spec import CellSpec, method
+from experiments.training import args as training_args
+from experiments.training import grid_cells
+from experiments.training.screen_variants import VARIANTS
+from metapg_jax.config import make_config
+from tests.helpers import fabricate_run
+
+
+def parsed_config(spec: CellSpec):
+    """The config ``experiments.run`` builds from the spec's command line."""
+    parsed = run_lib.build_parser().parse_args(spec.argv() + ["--out", os.devnull])
+    return training_args.config_from_run_args(training_args.run_args(parsed))
+
+
+def test_every_grid_method_gives_the_config_of_its_command_line():
+    """For every grid method (each with its student) and every screen variant, on a JAX task and a MuJoCo task,
+    with the grid's own overrides and budget: ``CellSpec.config()`` == the config parsed from ``CellSpec.argv()``."""
+    for name, m in METHODS.items():
+        for task in ("pendulum", "hopper"):
+            spec = CellSpec(task, m, student=STUDENT_OF.get(name, "ddpg"), seeds=3, seed=7, physics="mujoco",
+                            overrides=("run.eval_episodes=2",))
+            cfg = spec.config()
+            assert cfg == parsed_config(spec), (name, task)
+            assert (cfg.preset, cfg.student, cfg.run.eval_episodes) == (m.preset or "paper", spec.student, 2)
+    for name, v in VARIANTS.items():
+        for task in ("hopper", "halfcheetah"):
+            sets = v.sets(make_config(task, "meta", physics="mujoco"))
+            if sets is not None:
+                spec = CellSpec(task, v.method.setting(*sets), seeds=2, steps=30_000, physics="mujoco")
+                assert spec.config() == parsed_config(spec), (name, task)
+
+
+def test_a_spec_writes_the_command_line_the_grids_recorded():
+    """``reproduce.json``'s argv (what ``experiments.verify`` re-runs) keeps its form."""
+    args = reproduce.build_parser().parse_args(["--physics", "mujoco", "--seeds", "10", "--seed", "4000",
+                                                "--set", "run.eval_episodes=2"])
+    cell = grid_cells.grid_cell(args, "hopper", "td3-normal")
+    assert grid_cells.cell_argv(cell, "runs/x", "new") == [
+        "--env=hopper", "--method=ddpg", "--noise=normal", "--set", "noise.stddev=0.1", "--preset=paper", "--seeds=10",
+        "--seed=4000", "--source=gymnasium", "--physics=mujoco", "--set", "run.eval_episodes=2", "--out", "runs/x"]
+    tuned = grid_cells.grid_cell(args, "pendulum", "meta-tuned")
+    assert grid_cells.cell_argv(tuned, "runs/y", "extend")[:6] == [
+        "--env=pendulum", "--method=meta", "--teacher=independent", "--preset=tuned", "--seeds=10", "--seed=4000"]
+    assert "--steps=900000" in grid_cells.cell_argv(tuned, "runs/y", "extend")
+    assert method("ddpg", "noise.stddev=0.1", noise="normal") == METHODS["td3-normal"]
+
+
+def test_a_finished_cell_stored_with_other_seeds_stops_the_grid_before_anything_runs(tmp_path, capsys):
+    """Its numbers would otherwise be taken for the requested cell's ("done, skipped")."""
+    results = tmp_path / "res"
+    fabricate_run(results / "cells" / "pendulum" / "ddpg-normal", "pendulum", "ddpg-normal", [[0.0]] * 8, [9_000],
+                  seed=0)
+    argv = ["--tasks", "pendulum", "--methods", "ddpg-normal", "--runs-dir", str(tmp_path / "runs"),
+            "--results-dir", str(results), "--steps", "9000", "--dry-run"]
+    assert reproduce.main(argv + ["--seeds", "8"]) == 0
+    assert "done, skipped" in capsys.readouterr().out
+    assert reproduce.main(argv + ["--seeds", "10", "--seed", "4000"]) == 2
+    err = capsys.readouterr().err
+    assert "paper/pendulum/ddpg-normal" in err and "stored with seeds 8 (requested 10), seed 0 (requested 4000)" in err
