@@ -58,7 +58,9 @@ import time
 
 from experiments import reproduce
 from experiments.build import benchmark as artefacts
-from experiments.build.grid import LEARNED, METHODS, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, TASKS, task_folder
+from experiments.build.grid import (LEARNED, METHODS, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, TASKS,
+                                    baseline_for, task_folder)
+from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
 from experiments.grid.spec import CellSpec
 from experiments.training import grid_cells
 from metapg_jax.host.terminal import duration
@@ -90,32 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "earlier benchmark): always planned; every other strategy of the student gets its verdicts "
                         "and probability of improvement against it (default: its Gaussian noise, "
                         + ", ".join(f"{s}={m}" for s, m in STUDENT_BASELINES.items()) + ")")
-    p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, help=f"seeds per cell (default {DEFAULT_SEEDS})")
-    p.add_argument("--seed", type=int, default=DEFAULT_SEED,
-                   help=f"base PRNG seed of every cell (default {DEFAULT_SEED})")
-    p.add_argument("--steps", type=int, default=DEFAULT_STEPS,
-                   help=f"env steps per seed of every cell (default {DEFAULT_STEPS:,})")
-    p.add_argument("--physics", default="mujoco", choices=("mjx", "mujoco"),
-                   help="engine of the MuJoCo tasks (default mujoco, MuJoCo's C engine; gym: tasks need it)")
     p.add_argument("--name", default=DEFAULT_NAME, help=f"the benchmark's name (default {DEFAULT_NAME}): its folders")
-    p.add_argument("--runs-dir", default=None, help="the cells' run folders (default runs/benchmark-<name>)")
-    p.add_argument("--results-dir", default=None, help="archive and artefacts (default results/<name>)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
-                   help="config override passed to every cell (e.g. tiny test settings)")
-    p.add_argument("--launcher", default="local", choices=("local", "ray"),
-                   help="local (default): the cells one after another here; ray: each cell a Ray task "
-                        "(experiments.reproduce's --launcher ray)")
-    p.add_argument("--ray-address", default=None, metavar="HOST:PORT|auto",
-                   help="an existing Ray cluster (default: start a local instance)")
-    p.add_argument("--ray-cpus-per-cell", type=float, default=1.0,
-                   help="CPUs each cell's task asks Ray for (default 1)")
-    p.add_argument("--ray-gpus-per-cell", type=float, default=0.0,
-                   help="GPUs each cell's task asks Ray for (default 0)")
-    p.add_argument("--ray-retries", type=int, default=3,
-                   help="times Ray restarts a cell whose worker died (it resumes from its checkpoint; default 3)")
-    p.add_argument("--checkpoint-every", type=int, default=0, metavar="CHUNKS",
-                   help="each cell checkpoints every CHUNKS chunks (default 0: every --checkpoint-minutes)")
-    p.add_argument("--checkpoint-minutes", type=float, default=5.0, help="minutes between checkpoints (default 5)")
+    add_grid_options(p, seeds=DEFAULT_SEEDS, seed=DEFAULT_SEED, steps=DEFAULT_STEPS, physics="mujoco",
+                     steps_help=f"env steps per seed of every cell (default {DEFAULT_STEPS:,})",
+                     physics_help="engine of the MuJoCo tasks (default mujoco, MuJoCo's C engine; gym: tasks need it)",
+                     runs_help="the cells' run folders (default runs/benchmark-<name>)",
+                     results_help="archive and artefacts (default results/<name>)")
     p.add_argument("--artefacts-only", action="store_true", help="train nothing; rebuild the artefacts only")
     p.add_argument("--dry-run", action="store_true",
                    help="print the plan (each cell's state and command) and the estimated time; do nothing else")
@@ -125,8 +107,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--calibration-steps", type=int, default=CALIBRATION_STEPS,
                    help=f"env steps per seed of each timed calibration chunk, rounded up to whole cycles "
                         f"(default {CALIBRATION_STEPS:,}; at most the cell's evaluation interval)")
-    p.add_argument("--no-plot", action="store_true", help="skip each run's own PNGs (the artefacts are still drawn)")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
 
 
@@ -168,22 +148,6 @@ def entries(a: argparse.Namespace) -> list[artefacts.Entry]:
     return artefacts.entries_for(students, reproduce.parse_list(a.strategies, valid, "strategy"), baselines)
 
 
-def student_args(a: argparse.Namespace, student: str) -> argparse.Namespace:
-    """A student's grid as ``experiments.training.grid_cells`` reads it (``experiments.reproduce``'s options)."""
-    runs, results = artefacts.student_dirs(a.runs_dir, a.results_dir, student)
-    argv = [f"--student={student}", f"--preset={artefacts.PRESET}", f"--seeds={a.seeds}", f"--seed={a.seed}",
-            f"--steps={a.steps}", f"--physics={a.physics}", f"--runs-dir={runs}", f"--results-dir={results}",
-            f"--checkpoint-every={a.checkpoint_every}", f"--checkpoint-minutes={a.checkpoint_minutes:g}",
-            f"--launcher={a.launcher}", f"--ray-cpus-per-cell={a.ray_cpus_per_cell:g}",
-            f"--ray-gpus-per-cell={a.ray_gpus_per_cell:g}", f"--ray-retries={a.ray_retries}",
-            *([f"--ray-address={a.ray_address}"] if a.ray_address else []),
-            *(["--no-plot"] if a.no_plot else []), *(["--quiet"] if a.quiet else []),
-            *(f"--set={s}" for s in a.overrides)]
-    args = reproduce.build_parser().parse_args(argv)
-    args.dry_run = a.dry_run
-    return args
-
-
 def plan(a: argparse.Namespace) -> tuple[list[str], list[artefacts.Entry], list[grid_cells.Cell]]:
     """(tasks, entries, cells in run order: task by task, each task's entries); every cell's config validated
     (``ValueError``, one line) unless the cell finished at the budget already."""
@@ -193,30 +157,17 @@ def plan(a: argparse.Namespace) -> tuple[list[str], list[artefacts.Entry], list[
     a.results_dir = a.results_dir or os.path.join("results", a.name)
     tasks = parse_tasks(a.tasks)
     chosen = entries(a)
-    if a.seeds <= 0:
-        raise ValueError(f"--seeds must be positive, got {a.seeds}")
-    if a.steps <= 0:
-        raise ValueError(f"--steps must be positive, got {a.steps}")
-    if not 0 <= a.seed < 2 ** 32:
-        raise ValueError(f"--seed must be in [0, 2**32), got {a.seed}")
-    for item in a.overrides:
-        if "=" not in item:
-            raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
-    if a.ray_cpus_per_cell < 0 or a.ray_gpus_per_cell < 0 or a.ray_retries < 0:
-        raise ValueError("--ray-cpus-per-cell, --ray-gpus-per-cell and --ray-retries must be >= 0")
-    if a.checkpoint_every < 0 or not a.checkpoint_minutes > 0:
-        raise ValueError("--checkpoint-every must be >= 0 and --checkpoint-minutes > 0")
+    check_grid_options(a, trains=not a.artefacts_only and not a.dry_run)
     if a.calibration_task is not None and a.calibration_task not in tasks:
         raise ValueError(f"--calibration-task {a.calibration_task!r} is not one of the planned tasks")
     if a.calibration_steps <= 0:
         raise ValueError(f"--calibration-steps must be positive, got {a.calibration_steps}")
-    if a.launcher == "ray" and not a.artefacts_only and not a.dry_run:
-        try:
-            import ray  # noqa: F401
-        except ImportError:
-            raise ValueError("--launcher ray needs Ray: pip install -e \".[ray]\"") from None
-    args = {s: student_args(a, s) for s in dict.fromkeys(e.student for e in chosen)}
-    cells = [grid_cells.grid_cell(args[e.student], t, e.method, key=(e.student, t, e.method),
+    grids = {}
+    for student in dict.fromkeys(e.student for e in chosen):
+        runs, results = artefacts.student_dirs(a.runs_dir, a.results_dir, student)
+        grids[student] = (grid_run(a, runs, results, artefacts.PRESET, baseline_for(artefacts.PRESET, student)),
+                          grid_spec(a, artefacts.PRESET, student))
+    cells = [grid_cells.grid_cell(*grids[e.student], t, e.method, key=(e.student, t, e.method),
                                   tag=f"{e.student}/{t}/{e.method}") for t in tasks for e in chosen]
     if not a.artefacts_only:
         # A budget that one strategy's cycle does not divide, a bad --set or a task the engine cannot step stops the
@@ -373,15 +324,7 @@ def main(argv: list[str] | None = None) -> int:
         return dry_run(a, tasks, cells)
     t0, status = time.perf_counter(), 0
     if not a.artefacts_only:
-        if a.launcher == "ray":
-            status, report = grid_cells.run_cells_ray(cells, cells[0].args)
-        else:
-            status, report = grid_cells.run_cells(cells)
-        counts = {}
-        for v in report.values():
-            counts[v] = counts.get(v, 0) + 1
-        print("benchmark: " + (", ".join(f"{n} {k}" for k, n in sorted(counts.items())) or "nothing to do"),
-              flush=True)
+        status, report = launch(cells, a, "benchmark")
     options = {"name": a.name, "students": list(dict.fromkeys(e.student for e in chosen)),
                "strategies": [e.key for e in chosen], "baselines": artefacts.baselines_of(chosen), "seeds": a.seeds,
                "seed": a.seed, "steps": a.steps,

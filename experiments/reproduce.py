@@ -25,7 +25,7 @@ shorter cell. Next to each cell's
 run outputs, ``reproduce.json`` records the commit, the machine, the command
 and the accumulated wall time of this script's calls for that cell.
 
-``--launcher ray`` runs every cell that has work left as a Ray task (``experiments.training.grid_cells.run_grid_ray``; a local Ray
+``--launcher ray`` runs every cell that has work left as a Ray task (``experiments.training.grid_cells.run_cells_ray``; a local Ray
 instance unless ``--ray-address`` names a cluster): the same planning and archiving in the worker, and
 a cell whose worker died is retried by Ray and resumes from its checkpoint (docs/reproducing.md).
 ``--student td3`` runs the TD3 grid (``experiments.build.grid.GRIDS``) into ``runs/reproduce-td3`` and
@@ -49,7 +49,8 @@ import time
 
 from experiments.artefacts import add_figure_options, build_all
 from experiments.build.cells import results_dir_for
-from experiments.build.grid import BASELINES, GRIDS, TASKS, methods_for
+from experiments.build.grid import BASELINES, GRIDS, TASKS, baseline_for, methods_for
+from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
 from experiments.training import grid_cells
 
 # Where --physics=mujoco keeps its grid by default, apart from the MJX grid's runs/reproduce and results.
@@ -74,45 +75,20 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the learner of every cell: ddpg (default) or td3 (its grid: TD3 with Gaussian noise 0.1 vs "
                         "Meta on TD3; cells go to runs/reproduce-td3 and results/td3 unless --runs-dir/--results-dir "
                         "are given)")
-    p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, help=f"seeds per cell (default {DEFAULT_SEEDS})")
-    p.add_argument("--seed", type=int, default=0, help="base PRNG seed of every cell (default 0)")
-    p.add_argument("--steps", type=int, default=None,
-                   help="env steps per seed for every cell (default: each task's paper budget)")
     p.add_argument("--preset", default="paper", choices=tuple(BASELINES),
                    help="'paper' (default; results in --results-dir), 'modern' or 'tuned' (results in "
                         "<results-dir>/<preset>)")
     p.add_argument("--source", default="gymnasium", help="MuJoCo models: gymnasium (default) or brax")
-    p.add_argument("--physics", default="mjx", choices=("mjx", "mujoco"),
-                   help="engine of the MuJoCo tasks: mjx (default) or mujoco (MuJoCo's C engine; its cells go to "
-                        f"{MUJOCO_RUNS} and {MUJOCO_RESULTS} unless --runs-dir/--results-dir are given; "
-                        "pendulum cells run on their JAX physics either way)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
-                   help="config override passed to every cell's experiments.run (e.g. tiny test settings)")
-    p.add_argument("--runs-dir", default=None, help="grid root (default runs/reproduce)")
-    p.add_argument("--results-dir", default=None, help="artefact folder (default results)")
+    add_grid_options(
+        p, seeds=DEFAULT_SEEDS, seed=0, steps=None, physics="mjx",
+        steps_help="env steps per seed for every cell (default: each task's paper budget)",
+        physics_help="engine of the MuJoCo tasks: mjx (default) or mujoco (MuJoCo's C engine; its cells go to "
+                     f"{MUJOCO_RUNS} and {MUJOCO_RESULTS} unless --runs-dir/--results-dir are given; "
+                     "pendulum cells run on their JAX physics either way)",
+        runs_help="grid root (default runs/reproduce)", results_help="artefact folder (default results)")
     p.add_argument("--artefacts-only", action="store_true", help="train nothing; rebuild the artefacts only")
     add_figure_options(p)
-    p.add_argument("--no-plot", action="store_true", help="skip each run's own PNGs (the artefacts are still drawn)")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
-    p.add_argument("--tensorboard", action="store_true",
-                   help="each cell also writes TensorBoard scalars to <cell>/tensorboard/seed_<i>/ (experiments.run "
-                        "--tensorboard; needs the tensorboard extra, tensorboardX)")
-    p.add_argument("--checkpoint-every", type=int, default=0, metavar="CHUNKS",
-                   help="each cell checkpoints every CHUNKS chunks (experiments.run --checkpoint-every; default 0: "
-                        "every --checkpoint-minutes)")
-    p.add_argument("--checkpoint-minutes", type=float, default=5.0,
-                   help="each cell's minimum minutes between checkpoints (experiments.run; default 5)")
     p.add_argument("--dry-run", action="store_true", help="print what would be run, skipped or resumed; do nothing")
-    p.add_argument("--launcher", default="local", choices=("local", "ray"),
-                   help="local (default): the cells one after another in this process; ray: each cell a Ray task "
-                        "(the ray extra), on a local Ray instance started here, or on --ray-address")
-    p.add_argument("--ray-address", default=None, metavar="HOST:PORT|auto",
-                   help="an existing Ray cluster (default: start a local instance); its nodes need this package "
-                        "installed and --runs-dir/--results-dir on a shared file system")
-    p.add_argument("--ray-cpus-per-cell", type=float, default=1.0, help="CPUs each cell's task asks Ray for (default 1)")
-    p.add_argument("--ray-gpus-per-cell", type=float, default=0.0, help="GPUs each cell's task asks Ray for (default 0)")
-    p.add_argument("--ray-retries", type=int, default=3,
-                   help="times Ray restarts a cell whose worker died (it resumes from its last checkpoint; default 3)")
     return p
 
 
@@ -140,38 +116,19 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"--physics=mujoco steps gymnasium's models; source {args.source!r} has only MJX")
         grid_methods = methods_for(args.student)
         methods = parse_list(args.methods or ",".join(grid_methods), grid_methods, "method")
-        if args.seeds <= 0:
-            raise ValueError(f"--seeds must be positive, got {args.seeds}")
-        if args.steps is not None and args.steps <= 0:
-            raise ValueError(f"--steps must be positive, got {args.steps}")
-        for item in args.overrides:
-            if "=" not in item:
-                raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
-        if args.launcher == "ray" and not args.artefacts_only and not args.dry_run:
-            try:
-                import ray  # noqa: F401
-            except ImportError:
-                raise ValueError("--launcher ray needs Ray: pip install -e \".[ray]\"") from None
-        if args.ray_cpus_per_cell < 0 or args.ray_gpus_per_cell < 0 or args.ray_retries < 0:
-            raise ValueError("--ray-cpus-per-cell, --ray-gpus-per-cell and --ray-retries must be >= 0")
-        if args.tensorboard and not args.artefacts_only:
-            from metapg_jax.host import tb_events
-
-            tb_events.require_tensorboard()
+        check_grid_options(args, trains=not args.artefacts_only and not args.dry_run)
+        grid = grid_run(args, args.runs_dir, args.results_dir, args.preset, baseline_for(args.preset, args.student))
+        spec = grid_spec(args, args.preset, args.student, args.source)
+        cells = [grid_cells.grid_cell(grid, spec, t, m) for t in tasks for m in methods]
         if not args.artefacts_only:
-            grid_cells.validate_cells([grid_cells.grid_cell(args, t, m) for t in tasks for m in methods])
+            grid_cells.validate_cells(cells)
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
     t0 = time.perf_counter()
     status, report = 0, {}
     if not args.artefacts_only:
-        launch = grid_cells.run_grid_ray if args.launcher == "ray" and not args.dry_run else grid_cells.run_grid
-        status, report = launch(args, tasks, methods)
-        counts = {}
-        for v in report.values():
-            counts[v] = counts.get(v, 0) + 1
-        print("grid: " + (", ".join(f"{n} {k}" for k, n in sorted(counts.items())) or "nothing to do"), flush=True)
+        status, report = launch(cells, args)
     if args.dry_run:
         return status
     manifest = build_all(

@@ -29,6 +29,7 @@ import sys
 from experiments import ablation, reproduce
 from experiments.build import cells, stats
 from experiments.build.grid import TASK_NAMES
+from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
 from experiments.grid.spec import Method
 from experiments.training import grid_cells
 from experiments.training.screen_variants import BASELINES, CONTROL, DEFAULT_STEPS, DEFAULT_TASKS, VARIANTS
@@ -40,28 +41,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tasks", default=",".join(DEFAULT_TASKS), help="comma-separated tasks (default hopper,halfcheetah)")
     p.add_argument("--variants", default=",".join(VARIANTS),
                    help="comma-separated variants, run in this order (default all): " + ", ".join(VARIANTS))
-    p.add_argument("--steps", type=int, default=DEFAULT_STEPS, help=f"env steps per seed (default {DEFAULT_STEPS:,})")
-    p.add_argument("--seeds", type=int, default=8, help="seeds per cell (default 8)")
-    p.add_argument("--seed", type=int, default=0, help="base PRNG seed of every cell (default 0)")
-    p.add_argument("--physics", default="mujoco", choices=("mjx", "mujoco"),
-                   help="engine of the MuJoCo tasks (default mujoco, MuJoCo's C engine)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="GROUP.FIELD=VALUE",
-                   help="an override added to every cell (e.g. tiny test settings)")
-    p.add_argument("--runs-dir", default="runs/screen", help="cells' run folders (default runs/screen)")
-    p.add_argument("--results-dir", default="results/screen", help="archive and report (default results/screen)")
-    p.add_argument("--checkpoint-minutes", type=float, default=5.0, help="minutes between checkpoints (default 5)")
+    add_grid_options(p, seeds=8, seed=0, steps=DEFAULT_STEPS, physics="mujoco",
+                     steps_help=f"env steps per seed (default {DEFAULT_STEPS:,})",
+                     physics_help="engine of the MuJoCo tasks (default mujoco, MuJoCo's C engine)",
+                     runs_help="cells' run folders (default runs/screen)",
+                     results_help="archive and report (default results/screen)")
     p.add_argument("--report-only", action="store_true", help="train nothing; rebuild the report from what is stored")
     p.add_argument("--dry-run", action="store_true", help="print what would run; do nothing")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
     return p
-
-
-def reproduce_args(a: argparse.Namespace) -> argparse.Namespace:
-    """The ``experiments.reproduce`` options every cell shares."""
-    argv = ["--preset=paper", f"--seeds={a.seeds}", f"--seed={a.seed}", f"--steps={a.steps}",
-            f"--physics={a.physics}", "--no-plot", f"--runs-dir={a.runs_dir}", f"--results-dir={a.results_dir}",
-            f"--checkpoint-minutes={a.checkpoint_minutes:g}"] + [f"--set={s}" for s in a.overrides]
-    return reproduce.build_parser().parse_args(argv + (["--quiet"] if a.quiet else []))
 
 
 @functools.lru_cache(maxsize=None)
@@ -98,19 +85,20 @@ def plan(a: argparse.Namespace) -> list[grid_cells.Cell]:
     """Every cell to run, configs validated before anything trains."""
     tasks = reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
     names = reproduce.parse_list(a.variants, tuple(VARIANTS), "variant")
-    if a.seeds <= 0 or a.steps <= 0:
-        raise ValueError("--seeds and --steps must be positive")
-    rargs = reproduce_args(a)
-    out = [grid_cells.grid_cell(rargs, task, name, options, key=(task, name), tag=f"{task}/{name}")
+    check_grid_options(a, trains=not a.report_only and not a.dry_run)
+    # Each run's own PNGs are never drawn: the report draws the curves.
+    grid = grid_run(a, a.runs_dir, a.results_dir, "paper", BASELINES[0], no_plot=True)
+    spec = grid_spec(a, "paper")
+    out = [grid_cells.grid_cell(grid, spec, task, name, options, key=(task, name), tag=f"{task}/{name}")
            for task in tasks for name in names if (options := cell_options(task, name, a.physics)) is not None]
     grid_cells.validate_cells(out)
     return out
 
 
 def run_cells(a: argparse.Namespace, todo: list[grid_cells.Cell]) -> int:
-    """Runs the planned cells in turn (``grid_cells.run_cells``: a Ctrl-C stops the screen wherever it comes);
-    returns the exit status."""
-    status, _ = grid_cells.run_cells(todo, dry_run=a.dry_run)
+    """Runs the planned cells (``experiments.grid.cli.launch``: in turn, where a Ctrl-C stops the screen wherever it
+    comes, or on Ray); returns the exit status."""
+    status, _ = launch(todo, a, "screen")
     return status
 
 
@@ -276,6 +264,8 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
 
 def main(argv: list[str] | None = None) -> int:
     a = build_parser().parse_args(argv)
+    a.runs_dir = a.runs_dir or "runs/screen"
+    a.results_dir = a.results_dir or "results/screen"
     try:
         todo = plan(a)
     except ValueError as err:

@@ -110,7 +110,7 @@ def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_r
     assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 0
     out = capsys.readouterr().out
     assert "td3/pendulum/td3-normal [done] done, skipped: final return 0.0" in out
-    assert f"td3/pendulum/td3-pink [resume] resuming: python -m experiments.run" in out
+    assert "td3/pendulum/td3-pink [resume] resuming: python -m experiments.run" in out
     assert f"--resume {killed}" in out
     assert "td3/reacher/td3-pink [restart] restarting (no checkpoint stored)" in out and "--overwrite" in out
     assert "sac/reacher/sac-own [done] done, skipped" in out and "sac/pendulum/sac-own [new] running" in out
@@ -168,7 +168,7 @@ def test_a_tiny_benchmark_runs_archives_skips_and_plans_the_resume(tmp_path, cap
     assert "benchmark: 1 skipped" in capsys.readouterr().out
     (cell / "summary.json").unlink()  # as if killed after its last checkpoint
     assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 0
-    assert f"[resume] resuming: python -m experiments.run" in capsys.readouterr().out
+    assert "[resume] resuming: python -m experiments.run" in capsys.readouterr().out
 
 
 def _write_rows(path, extra):

@@ -6,7 +6,7 @@ import os
 from experiments import reproduce
 from experiments import run as run_lib
 from experiments.build.grid import METHODS, STUDENT_OF
-from experiments.grid.spec import CellSpec, method
+from experiments.grid.spec import CellSpec, GridRun, GridSpec, method
 from experiments.training import args as training_args
 from experiments.training import grid_cells
 from experiments.training.screen_variants import VARIANTS
@@ -40,13 +40,13 @@ def test_every_grid_method_gives_the_config_of_its_command_line():
 
 def test_a_spec_writes_the_command_line_the_grids_recorded():
     """``reproduce.json``'s argv (what ``experiments.verify`` re-runs) keeps its form."""
-    args = reproduce.build_parser().parse_args(["--physics", "mujoco", "--seeds", "10", "--seed", "4000",
-                                                "--set", "run.eval_episodes=2"])
-    cell = grid_cells.grid_cell(args, "hopper", "td3-normal")
+    grid = GridRun("runs", "results")
+    spec = GridSpec(physics="mujoco", seeds=10, seed=4000, overrides=("run.eval_episodes=2",))
+    cell = grid_cells.grid_cell(grid, spec, "hopper", "td3-normal")
     assert grid_cells.cell_argv(cell, "runs/x", "new") == [
         "--env=hopper", "--method=ddpg", "--noise=normal", "--set", "noise.stddev=0.1", "--preset=paper", "--seeds=10",
         "--seed=4000", "--source=gymnasium", "--physics=mujoco", "--set", "run.eval_episodes=2", "--out", "runs/x"]
-    tuned = grid_cells.grid_cell(args, "pendulum", "meta-tuned")
+    tuned = grid_cells.grid_cell(grid, spec, "pendulum", "meta-tuned")
     assert grid_cells.cell_argv(tuned, "runs/y", "extend")[:6] == [
         "--env=pendulum", "--method=meta", "--teacher=independent", "--preset=tuned", "--seeds=10", "--seed=4000"]
     assert "--steps=900000" in grid_cells.cell_argv(tuned, "runs/y", "extend")

@@ -13,6 +13,7 @@ import pytest
 from experiments import reproduce
 from experiments.training import grid_cells
 from experiments.build import cells
+from experiments.grid.spec import GridRun, GridSpec
 from tests.helpers import fabricate_run
 
 # The same settings as tests/test_screen.py's, with a fixed replay capacity: the two files' pendulum cells of
@@ -205,10 +206,10 @@ def test_reproduce_on_the_c_engine_keeps_its_own_folders(tmp_path, capsys, monke
 
 
 def test_tensorboard_is_passed_to_every_cell_and_needs_its_extra(monkeypatch, tmp_path, capsys):
-    cell = grid_cells.grid_cell(reproduce.build_parser().parse_args(["--tensorboard"]), "pendulum", "meta-independent")
+    cell = grid_cells.grid_cell(GridRun("runs", "results", tensorboard=True), GridSpec(), "pendulum", "meta-independent")
     for state in ("new", "resume", "extend"):
         assert "--tensorboard" in grid_cells.cell_argv(cell, str(tmp_path), state)
-    plain = grid_cells.grid_cell(reproduce.build_parser().parse_args([]), "pendulum", "meta-independent")
+    plain = grid_cells.grid_cell(GridRun("runs", "results"), GridSpec(), "pendulum", "meta-independent")
     assert "--tensorboard" not in grid_cells.cell_argv(plain, str(tmp_path), "new")
     monkeypatch.setitem(sys.modules, "tensorboardX", None)  # the extra not installed
     runs = tmp_path / "runs"

@@ -135,3 +135,56 @@ class CellSpec:
         for plugin in self.plugins:
             out.append(f"--plugin={plugin}")
         return out
+
+
+@dataclasses.dataclass(frozen=True)
+class GridSpec:
+    """What every cell of a grid shares of its run (``CellSpec``'s fields but the task and the method)."""
+
+    preset: str = "paper"
+    student: str = "ddpg"
+    seeds: int = 8
+    seed: int = 0
+    steps: int | None = None
+    source: str = "gymnasium"
+    physics: str = "auto"
+    overrides: tuple[str, ...] = ()
+
+    def cell(self, task: str, method: Method) -> CellSpec:
+        """The run of the grid's cell of ``task`` and ``method``."""
+        return CellSpec(task, method, **dataclasses.asdict(self))
+
+
+@dataclasses.dataclass(frozen=True)
+class GridRun:
+    """Where a grid keeps its cells and how it runs them (what is not the cells' runs).
+
+    Attributes:
+      runs_dir: the run folders' root: ``<runs_dir>/<preset>/<task>/<name>``.
+      results_dir: the archive's and the artefacts' root: ``<results_dir>[/<preset>]/cells/<task>/<name>``
+        (``experiments.build.cells.archive_dir_for``).
+      preset: the grid's preset, which names its folders (a method's own preset does not).
+      baseline: the grid method whose visitation sample the archive keeps beside Meta's.
+      quiet, no_plot, tensorboard, checkpoint_every, checkpoint_minutes: ``experiments.run``'s options of every
+        cell (no progress bars; no per-run PNGs; TensorBoard scalars; the checkpoint cadence).
+    """
+
+    runs_dir: str
+    results_dir: str
+    preset: str = "paper"
+    baseline: str = "ddpg-paramnoise"
+    quiet: bool = False
+    no_plot: bool = False
+    tensorboard: bool = False
+    checkpoint_every: int = 0
+    checkpoint_minutes: float = 5.0
+
+    def run_options(self) -> list[str]:
+        """The ``experiments.run`` options that say how each cell runs (none of them changes its numbers)."""
+        out = [flag for flag, on in (("--no-plot", self.no_plot), ("--quiet", self.quiet),
+                                     ("--tensorboard", self.tensorboard)) if on]
+        if self.checkpoint_every:
+            out.append(f"--checkpoint-every={self.checkpoint_every}")
+        if self.checkpoint_minutes != 5.0:
+            out.append(f"--checkpoint-minutes={self.checkpoint_minutes:g}")
+        return out

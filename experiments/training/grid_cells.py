@@ -2,7 +2,7 @@
 each cell's folder and state (new, resume, extend, done), its ``experiments.run`` command line, the plan checked
 before the first cell runs, the run itself with its ``reproduce.json`` record (commit, dirty diff, wall and CPU
 time) and its archive; cell by cell here or as Ray tasks (``run_cells``, ``run_cells_ray``: cells that may each
-carry their own grid options, e.g. one student's per cell; ``run_grid``, ``run_grid_ray``: a task x method grid)."""
+carry their own grid options, e.g. one student's per cell; ``validate_cells``: every cell checked before any runs)."""
 
 from __future__ import annotations
 
@@ -15,20 +15,18 @@ import time
 from typing import NamedTuple
 
 from experiments.build.cells import archive_cell, archive_dir_for, read_json
-from experiments.build.grid import METHODS, baseline_for, task_folder
-from experiments.grid.spec import CellSpec, Method
-from experiments.training.args import RUN_ARGS
+from experiments.build.grid import METHODS, task_folder
+from experiments.grid.spec import CellSpec, GridRun, GridSpec, Method
 from metapg_jax.host.runner import Signals, Stopped
 from metapg_jax.host.terminal import duration
 
 
 class Cell(NamedTuple):
-    """One cell to plan and run: its run (``spec``, typed data: ``experiments.grid.spec.CellSpec``), the grid's
-    options (``experiments.reproduce``'s parser: folders, the preset's folder, the student's baseline, how a run is
-    run: checkpoint cadence, progress bars, TensorBoard, Ray), the name of its folder (the grid method or the
-    variant); ``key``: how the report returned by ``run_cells`` names it; ``tag``: how the progress lines name it."""
+    """One cell to plan and run: where its grid keeps it and how (``grid``: ``experiments.grid.spec.GridRun``), its
+    run (``spec``, typed data: ``CellSpec``), the name of its folder (the grid method or the variant); ``key``: how
+    the report returned by ``run_cells`` names it; ``tag``: how the progress lines name it."""
 
-    args: argparse.Namespace
+    grid: GridRun
     spec: CellSpec
     name: str
     key: tuple = ()
@@ -39,20 +37,12 @@ class Cell(NamedTuple):
         return self.spec.task
 
 
-def grid_spec(args: argparse.Namespace, task: str, name: str, method: Method | None = None) -> CellSpec:
-    """The run of a grid's cell: the grid's options (``experiments.reproduce``'s) with ``method``, else the grid
-    method ``name``'s (``METHODS``)."""
-    return CellSpec(task, METHODS[name] if method is None else method, preset=args.preset, student=args.student,
-                    seeds=args.seeds, seed=args.seed, steps=args.steps, source=args.source, physics=args.physics,
-                    overrides=tuple(args.overrides))
-
-
-def grid_cell(args: argparse.Namespace, task: str, name: str, method: Method | None = None,
+def grid_cell(grid: GridRun, spec: GridSpec, task: str, name: str, method: Method | None = None,
               key: tuple | None = None, tag: str | None = None) -> Cell:
-    """A grid's cell, named (task, method) in the report and ``<preset>/<task>/<method>`` in the lines unless
-    ``key``/``tag`` say otherwise."""
-    return Cell(args, grid_spec(args, task, name, method), name, (task, name) if key is None else key,
-                f"{args.preset}/{task}/{name}" if tag is None else tag)
+    """A grid's cell of ``task`` and the grid method ``name`` (``METHODS[name]`` unless ``method`` is given), named
+    (task, name) in the report and ``<preset>/<task>/<name>`` in the lines unless ``key``/``tag`` say otherwise."""
+    return Cell(grid, spec.cell(task, METHODS[name] if method is None else method), name,
+                (task, name) if key is None else key, f"{grid.preset}/{task}/{name}" if tag is None else tag)
 
 
 def cell_dir(runs_dir: str, preset: str, task: str, method: str) -> str:
@@ -61,7 +51,7 @@ def cell_dir(runs_dir: str, preset: str, task: str, method: str) -> str:
 
 def run_dir(cell: Cell) -> str:
     """The cell's run folder: ``<runs-dir>/<preset>/<task>/<name>``."""
-    return cell_dir(cell.args.runs_dir, cell.args.preset, cell.task, cell.name)
+    return cell_dir(cell.grid.runs_dir, cell.grid.preset, cell.task, cell.name)
 
 
 def cell_state(path: str) -> str:
@@ -90,24 +80,13 @@ def finished_at_budget(cell: Cell) -> bool:
 
 def archived_dir(cell: Cell) -> str:
     """Where a finished cell is archived: ``<results>/cells/<task>/<name>`` (``cells.archive_dir_for``)."""
-    return os.path.join(archive_dir_for(cell.args.results_dir, cell.args.preset), task_folder(cell.task), cell.name)
+    return os.path.join(archive_dir_for(cell.grid.results_dir, cell.grid.preset), task_folder(cell.task), cell.name)
 
 
 def cell_argv(cell: Cell, out: str, state: str) -> list[str]:
     """The explicit ``experiments.run`` options of a cell (the same for a fresh start and a resume; an
     extension names the new budget): its run's (``CellSpec.argv``), then how the grid runs it, then the folder."""
-    args = cell.args
-    argv = cell.spec.argv(explicit_steps=state == "extend")
-    if args.no_plot:
-        argv.append("--no-plot")
-    if args.quiet:
-        argv.append("--quiet")
-    if args.tensorboard:
-        argv.append("--tensorboard")
-    if args.checkpoint_every:
-        argv.append(f"--checkpoint-every={args.checkpoint_every}")
-    if args.checkpoint_minutes != 5.0:
-        argv.append(f"--checkpoint-minutes={args.checkpoint_minutes:g}")
+    argv = cell.spec.argv(explicit_steps=state == "extend") + cell.grid.run_options()
     if state in ("resume", "extend"):
         argv += ["--resume", out]
     else:
@@ -247,18 +226,12 @@ def run_cell(cell: Cell, plan: dict) -> int:
         code = 130
     if os.path.isdir(out):
         write_cell_record(out, argv, code, time.perf_counter() - t0, started, diff, time.process_time() - cpu0)
-        archive_cell(out, plan["archived"], cell.name, baseline_for(cell.args.preset, cell.args.student))
+        archive_cell(out, plan["archived"], cell.name, cell.grid.baseline)
     return code
 
 
 def outcome(plan: dict, code: int) -> str:
     return {0: {"resume": "resumed", "extend": "extended"}.get(plan["state"], "ran")}.get(code, f"exit {code}")
-
-
-def run_grid(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
-    """Runs the task x method grid cell by cell (``run_cells``); returns (exit status, {(task, method): what
-    happened})."""
-    return run_cells([grid_cell(args, t, m) for t in tasks for m in methods], dry_run=args.dry_run)
 
 
 def run_cells(cells: list[Cell], dry_run: bool = False) -> tuple[int, dict]:
@@ -334,12 +307,6 @@ def _ray_cell(cell: Cell, cwd: str) -> tuple[dict, int]:
     if plan["argv"] is None:
         return plan, 0
     return plan, run_cell(cell, plan)
-
-
-def run_grid_ray(args: argparse.Namespace, tasks: list[str], methods: list[str]) -> tuple[int, dict]:
-    """Every cell of the task x method grid that has work left as a Ray task (``run_cells_ray``); returns
-    (exit status, {(task, method): what happened}) like ``run_grid``."""
-    return run_cells_ray([grid_cell(args, t, m) for t in tasks for m in methods], args)
 
 
 def run_cells_ray(cells: list[Cell], launcher: argparse.Namespace) -> tuple[int, dict]:
