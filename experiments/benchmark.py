@@ -308,7 +308,12 @@ def dry_run(a: argparse.Namespace, tasks: list[str], cells: list[grid_cells.Cell
 
 
 def main(argv: list[str] | None = None) -> int:
-    a = build_parser().parse_args(argv)
+    return run_parsed(build_parser().parse_args(argv), sys.argv[1:] if argv is None else list(argv))
+
+
+def run_parsed(a: argparse.Namespace, argv: list[str]) -> int:
+    """``main`` after parsing (``experiments.grid`` runs a named study through it); ``argv``: what the manifest
+    records as the command's options."""
     try:
         tasks, chosen, cells = plan(a)
     except ValueError as err:
@@ -329,7 +334,7 @@ def main(argv: list[str] | None = None) -> int:
                "strategies": [e.key for e in chosen], "baselines": artefacts.baselines_of(chosen), "seeds": a.seeds,
                "seed": a.seed, "steps": a.steps,
                "physics": a.physics, "overrides": a.overrides,
-               "argv": sys.argv[1:] if argv is None else list(argv)}
+               "argv": argv}
     manifest = artefacts.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
                                extra_provenance={"benchmark_wall_seconds": round(time.perf_counter() - t0, 2)})
     print(f"artefacts: {len(manifest['files'])} files in {a.results_dir} ({len(manifest['cells'])} stored cells, "

@@ -103,7 +103,12 @@ def parse_list(text: str, valid, what: str) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    return run_parsed(build_parser().parse_args(argv), sys.argv[1:] if argv is None else list(argv))
+
+
+def run_parsed(args: argparse.Namespace, argv: list[str]) -> int:
+    """``main`` after parsing (``experiments.grid`` runs a named study through it); ``argv``: what the manifest
+    records as the command's options."""
     mujoco = args.physics == "mujoco"
     other = args.student != "ddpg"
     if args.runs_dir is None:
@@ -134,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     manifest = build_all(
         args.runs_dir, args.results_dir, args.preset, embedding=args.embedding,
         visitation_tasks=args.visitation_task, student=args.student,
-        extra_provenance={"reproduce_argv": sys.argv[1:] if argv is None else list(argv),
+        extra_provenance={"reproduce_argv": argv,
                           "requested": {"tasks": tasks, "methods": methods, "seeds": args.seeds, "seed": args.seed,
                                         "steps": args.steps, "overrides": args.overrides},
                           "grid_wall_seconds": round(time.perf_counter() - t0, 2)})

@@ -263,7 +263,11 @@ def write_report(results_dir: str, tasks: list[str], upto: int, seeds: int, phys
 
 
 def main(argv: list[str] | None = None) -> int:
-    a = build_parser().parse_args(argv)
+    return run_parsed(build_parser().parse_args(argv))
+
+
+def run_parsed(a: argparse.Namespace, argv: list[str] | None = None) -> int:
+    """``main`` after parsing (``experiments.grid`` runs a named study through it)."""
     a.runs_dir = a.runs_dir or "runs/screen"
     a.results_dir = a.results_dir or "results/screen"
     try:

@@ -65,3 +65,30 @@ def test_a_finished_cell_stored_with_other_seeds_stops_the_grid_before_anything_
     assert reproduce.main(argv + ["--seeds", "10", "--seed", "4000"]) == 2
     err = capsys.readouterr().err
     assert "paper/pendulum/ddpg-normal" in err and "stored with seeds 8 (requested 10), seed 0 (requested 4000)" in err
+
+
+def test_every_study_resolves_every_stored_cell_of_its_grid(capsys, tmp_path):
+    """``python -m experiments.grid <study> --dry-run`` for every named study: its settings are options of its kind,
+    and every cell of a finished study resolves to its archived copy (nothing would run). ``table2-c`` runs over
+    several sittings: its plan only has to parse and validate."""
+    from experiments.grid.__main__ import main
+    from experiments.grid.studies import studies
+
+    unfinished = {"table2-c"}
+    for name, study in studies().items():
+        extra = ["--no-calibrate"] if study.kind == "benchmark" else []
+        assert main([name, "--dry-run", "--runs-dir", str(tmp_path / "runs"), *extra]) == 0, name
+        out = capsys.readouterr().out
+        if name not in unfinished:
+            assert "would new" not in out and "[new]" not in out and "running:" not in out, name
+
+
+def test_a_study_refuses_an_option_that_would_change_it(capsys):
+    from experiments.grid.__main__ import main
+
+    assert main(["learned-judgement", "--seed", "5", "--dry-run"]) == 2
+    assert "is defined with --seed 2000" in capsys.readouterr().err
+    assert main(["table2-td3", "--tasks", "pendulum", "--dry-run"]) == 2
+    assert "has no task 'pendulum'" in capsys.readouterr().err
+    assert main(["no-such-study"]) == 2 and "unknown study 'no-such-study'" in capsys.readouterr().err
+    assert main(["--list"]) == 0 and "table2-c" in capsys.readouterr().out
