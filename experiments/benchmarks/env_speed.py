@@ -119,7 +119,7 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
     import numpy as np
 
     import envs
-    from envs.mujoco_c import default_threads
+    from envs.host_call import default_threads
 
     def time_ours(**overrides):
         env = envs.make(task, **overrides)
