@@ -1,4 +1,6 @@
-"""Registry, wrappers (time limit, auto-reset, flags, statistics) and the JAX Pendulum."""
+"""Registry (a task is one spec), wrappers (time limit, auto-reset, flags, statistics) and the JAX Pendulum."""
+
+import dataclasses
 
 import gymnasium
 import jax
@@ -17,6 +19,45 @@ def test_unknown_task_lists_valid_names():
         envs.make("cartpole")
     with pytest.raises(ValueError, match="valid sources"):
         envs.make("hopper", source="dm_control")
+
+
+def test_a_task_added_to_the_registry_alone_gets_its_schedule_budget_and_name_from_its_spec(monkeypatch):
+    """One spec in ``envs.TASKS`` is the whole task: the config, Meta's schedule, its name and the engine choice
+    read it; no other module lists it."""
+    from metapg_jax.config import make_config, validate
+
+    spec = dataclasses.replace(envs.TASKS["pendulum"], paper_budget=60_000, eval_every=6_000, display_name="Toy",
+                               meta_schedule=envs.MetaSchedule(200, 400, 100, 2), table2=None)
+    monkeypatch.setitem(envs.TASKS, "toy", spec)
+    meta = validate(make_config("toy", "meta"))
+    assert (meta.meta.explore_steps, meta.meta.eval_steps, meta.run.train_steps, meta.meta.teacher_steps) == \
+        (200, 400, 100, 2)
+    assert (meta.run.total_steps, meta.run.eval_every, meta.env.physics) == (60_000, 6_000, "mjx")
+    ddpg = validate(make_config("toy", "ddpg"))
+    assert (ddpg.run.total_steps, ddpg.run.eval_every, ddpg.run.train_steps) == (60_000, 6_000, 50)
+    assert envs.display_name("toy") == "Toy"
+    assert not envs.has_mujoco("toy") and "toy" not in envs.paper_tasks()  # the paper's: tasks with a Table 2 row
+    env = envs.make("toy")
+    assert (env.observation_size, env.action_size) == (3, 1)
+    # Without a schedule of its own, Algorithm 1's defaults; a MuJoCo task's constructors are its spec's.
+    monkeypatch.setitem(envs.TASKS, "toy", dataclasses.replace(spec, meta_schedule=None))
+    meta = make_config("toy", "meta")
+    assert (meta.meta.explore_steps, meta.meta.eval_steps, meta.run.train_steps, meta.meta.teacher_steps) == \
+        (100, 200, 50, 1)
+    monkeypatch.setitem(envs.TASKS, "toy_hopper", dataclasses.replace(envs.TASKS["hopper"], display_name="ToyHopper"))
+    assert envs.constructor("toy_hopper") is envs.constructor("hopper")
+    assert envs.constructor("toy_hopper", "brax").__name__ == "brax_hopper"
+    assert envs.has_mujoco("toy_hopper") and envs.resolve_physics("toy_hopper", "gymnasium", "auto", "cpu") == "mujoco"
+    with pytest.raises(ValueError, match="toy has only the gymnasium source"):
+        envs.constructor("toy", "brax")
+
+
+def test_the_paper_tasks_are_table_2s_rows_in_its_order():
+    assert envs.paper_tasks() == ("inverted_double_pendulum", "inverted_pendulum", "hopper", "pendulum", "halfcheetah",
+                                  "reacher")
+    assert [envs.display_name(t) for t in envs.paper_tasks()] == [
+        "InvertedDoublePendulum", "InvertedPendulum", "Hopper", "Pendulum", "HalfCheetah", "Reacher"]
+    assert envs.display_name("gym:Ant-v5(ctrl_cost_weight=0.1)") == "Ant-v5(ctrl_cost_weight=0.1)"
 
 
 def test_pendulum_step_matches_hand_computation():
