@@ -1,6 +1,8 @@
 """Registry (a task is one spec), wrappers (time limit, auto-reset, flags, statistics) and the JAX Pendulum."""
 
 import dataclasses
+import os
+import re
 
 import gymnasium
 import jax
@@ -12,6 +14,8 @@ from brax.envs.base import Env, State
 import envs
 from envs.pendulum import Pendulum
 from envs.wrappers import AutoResetWrapper, EpisodeWrapper
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def test_unknown_task_lists_valid_names():
@@ -58,6 +62,24 @@ def test_the_paper_tasks_are_table_2s_rows_in_its_order():
     assert [envs.display_name(t) for t in envs.paper_tasks()] == [
         "InvertedDoublePendulum", "InvertedPendulum", "Hopper", "Pendulum", "HalfCheetah", "Reacher"]
     assert envs.display_name("gym:Ant-v5(ctrl_cost_weight=0.1)") == "Ant-v5(ctrl_cost_weight=0.1)"
+
+
+def test_the_library_names_no_built_in_task():
+    """No file under metapg_jax/ names a built-in task, by its name or its display name, anywhere (code, strings,
+    comments, docstrings): what a task needs is in its spec, which the library reads (``envs.DEFAULT_TASK`` is the
+    default task)."""
+    names = sorted({n for name, spec in envs.TASKS.items() for n in (name, spec.display_name)}, key=len, reverse=True)
+    pattern = re.compile(r"(?<![A-Za-z0-9_])(" + "|".join(map(re.escape, names)) + r")(?![A-Za-z0-9_])", re.IGNORECASE)
+    assert pattern.search(open(envs.__file__).read())  # the check sees a name where one is
+    found = {}
+    for folder, dirs, files in os.walk(os.path.join(ROOT, "metapg_jax")):
+        dirs[:] = [d for d in dirs if d != "__pycache__"]
+        for f in (f for f in files if f.endswith(".py")):
+            path = os.path.join(folder, f)
+            hits = sorted({m.group(0) for m in pattern.finditer(open(path).read())})
+            if hits:
+                found[os.path.relpath(path, ROOT)] = hits
+    assert found == {}
 
 
 def test_pendulum_step_matches_hand_computation():
