@@ -7,8 +7,8 @@
     python -m experiments.reproduce --artefacts-only --embedding pca  # no training, rebuild from what is stored
 
 Each grid cell is one ``experiments.run.main`` call writing
-``<runs-dir>/<preset>/<task>/<method>``, run one after another in the paper's
-task order (InvertedDoublePendulum first). Run folders are not committed
+``<runs-dir>/<preset>/<task>/<method>``, run one after another in ``RUN_ORDER``
+(InvertedDoublePendulum first). Run folders are not committed
 (checkpoints are large); every finished cell's results (config, metrics,
 summary, provenance, a thinned state-visitation sample) are copied into the
 committed archive ``<results-dir>/cells/<task>/<method>`` when the artefacts
@@ -49,13 +49,16 @@ import time
 
 from experiments.artefacts import add_figure_options, build_all
 from experiments.build.cells import results_dir_for
-from experiments.build.grid import BASELINES, GRIDS, TASKS, methods_for
+from experiments.build import grid
+from experiments.build.grid import BASELINES, GRIDS, methods_for
 from experiments.training import grid_cells
 
 # Where --physics=mujoco keeps its grid by default, apart from the MJX grid's runs/reproduce and results.
 MUJOCO_RUNS, MUJOCO_RESULTS = "runs/reproduce-mujoco", "results/mujoco"
 # Where a student other than DDPG keeps its grid by default (whatever the physics): runs/reproduce-<student>
 # and results/<student>.
+# The order a full grid runs its tasks in: this study's choice (the grid's tasks are the paper's,
+# experiments.build.grid.tasks; test_reproduce checks that this lists each once).
 RUN_ORDER = ("inverted_double_pendulum", "pendulum", "inverted_pendulum", "reacher", "hopper", "halfcheetah")
 DEFAULT_SEEDS = 8
 
@@ -135,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.results_dir is None:
         args.results_dir = f"results/{args.student}" if other else MUJOCO_RESULTS if mujoco else "results"
     try:
-        tasks = parse_list(args.tasks, TASKS, "task")
+        tasks = parse_list(args.tasks, grid.tasks(), "task")
         if mujoco and args.source != "gymnasium":
             raise ValueError(f"--physics=mujoco steps gymnasium's models; source {args.source!r} has only MJX")
         grid_methods = methods_for(args.student)

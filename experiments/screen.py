@@ -26,9 +26,10 @@ import functools
 import os
 import sys
 
+import envs
 from experiments import ablation, reproduce
 from experiments.build import cells, stats
-from experiments.build.grid import TASK_NAMES
+from experiments.build.grid import task_name
 from experiments.training import grid_cells
 from experiments.training.screen_variants import BASELINES, CONTROL, DEFAULT_STEPS, DEFAULT_TASKS, VARIANTS
 
@@ -98,7 +99,7 @@ def cell_options(task: str, name: str, physics: str) -> list[str] | None:
 
 def plan(a: argparse.Namespace) -> list[tuple[str, str, list[str]]]:
     """(task, variant, options) of every cell to run, configs validated before anything trains."""
-    tasks = reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
+    tasks = reproduce.parse_list(a.tasks, tuple(envs.TASKS), "task")
     names = reproduce.parse_list(a.variants, tuple(VARIANTS), "variant")
     if a.seeds <= 0 or a.steps <= 0:
         raise ValueError("--seeds and --steps must be positive")
@@ -177,7 +178,7 @@ def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "
     """The report; ``by_task``: task -> ``task_rows``' (rows, missing); ``judged``: ``verdicts``' result."""
     tasks = list(by_task)
     judged = verdicts(by_task) if judged is None else judged
-    lines = [f"# Screen of teacher variants ({', '.join(TASK_NAMES[t] for t in tasks)}, {upto:,} env steps, "
+    lines = [f"# Screen of teacher variants ({', '.join(task_name(t) for t in tasks)}, {upto:,} env steps, "
              f"{seeds} seeds)", "",
              "Algorithm 1's knobs changed one at a time from the paper preset (`python -m experiments.screen`, "
              "MuJoCo's C engine, base seed 0), next to the paper's teacher and both DDPG noise baselines on the "
@@ -196,7 +197,7 @@ def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "
         lines.append(f"| {v.label} | {v.change} | {v.hypothesis} |")
     for task in tasks:
         rows, missing = by_task[task]
-        lines += ["", f"## {TASK_NAMES[task]}", ""]
+        lines += ["", f"## {task_name(task)}", ""]
         if not rows:
             lines.append(f"The paper teacher's cell is not finished: nothing is compared ({len(VARIANTS)} cells "
                          "not run or not finished).")
@@ -299,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
         status = run_cells(a, todo)
     if a.dry_run:
         return status
-    tasks = list(dict.fromkeys(t for t, _, _ in todo)) or reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
+    tasks = list(dict.fromkeys(t for t, _, _ in todo)) or reproduce.parse_list(a.tasks, tuple(envs.TASKS), "task")
     files = write_report(a.results_dir, tasks, a.steps, a.seeds, a.physics)
     print("wrote " + ", ".join(files), flush=True)
     return status

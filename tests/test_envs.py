@@ -26,8 +26,10 @@ def test_unknown_task_lists_valid_names():
 
 
 def test_a_task_added_to_the_registry_alone_gets_its_schedule_budget_and_name_from_its_spec(monkeypatch):
-    """One spec in ``envs.TASKS`` is the whole task: the config, Meta's schedule, its name and the engine choice
-    read it; no other module lists it."""
+    """One spec in ``envs.TASKS`` is the whole task: the config, Meta's schedule, the tables' name and the engine
+    choice read it; no other module lists it."""
+    from experiments.build import grid
+    from experiments.training.args import physics_label
     from metapg_jax.config import make_config, validate
 
     spec = dataclasses.replace(envs.TASKS["pendulum"], paper_budget=60_000, eval_every=6_000, display_name="Toy",
@@ -39,8 +41,9 @@ def test_a_task_added_to_the_registry_alone_gets_its_schedule_budget_and_name_fr
     assert (meta.run.total_steps, meta.run.eval_every, meta.env.physics) == (60_000, 6_000, "mjx")
     ddpg = validate(make_config("toy", "ddpg"))
     assert (ddpg.run.total_steps, ddpg.run.eval_every, ddpg.run.train_steps) == (60_000, 6_000, 50)
-    assert envs.display_name("toy") == "Toy"
-    assert not envs.has_mujoco("toy") and "toy" not in envs.paper_tasks()  # the paper's: tasks with a Table 2 row
+    assert envs.display_name("toy") == grid.task_name("toy") == "Toy"
+    assert not envs.has_mujoco("toy") and physics_label(meta) == "JAX"
+    assert "toy" not in grid.tasks()  # the paper's grid: the tasks with a Table 2 row
     env = envs.make("toy")
     assert (env.observation_size, env.action_size) == (3, 1)
     # Without a schedule of its own, Algorithm 1's defaults; a MuJoCo task's constructors are its spec's.

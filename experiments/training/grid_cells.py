@@ -14,6 +14,7 @@ import sys
 import time
 from typing import NamedTuple
 
+import envs
 from experiments.build.cells import archive_cell, archive_dir_for, read_json
 from experiments.build.grid import METHOD_PRESETS, METHODS, baseline_for, task_folder
 from experiments.training.args import RUN_ARGS
@@ -80,9 +81,7 @@ def cell_preset(args: argparse.Namespace, method: str) -> str:
 
 def wanted_budget(args: argparse.Namespace, task: str) -> int:
     """The requested env steps per seed: ``--steps``, else the paper's budget for the task (as make_config)."""
-    from envs import default_budget
-
-    return default_budget(task) if args.steps is None else args.steps
+    return envs.default_budget(task) if args.steps is None else args.steps
 
 
 def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state: str,
@@ -94,7 +93,7 @@ def cell_argv(args: argparse.Namespace, task: str, method: str, out: str, state:
     options = METHODS[method] if options is None else options
     argv = [f"--env={task}", *options, f"--preset={cell_preset(args, method)}", f"--seeds={args.seeds}",
             f"--seed={args.seed}", f"--source={args.source}"]
-    if task != "pendulum":  # named always: experiments.run's own default, 'auto', depends on the backend
+    if envs.has_mujoco(task):  # named always: experiments.run's own default, 'auto', depends on the backend
         argv.append(f"--physics={args.physics}")
     if args.student != RUN_ARGS["student"]:  # named when it is not experiments.run's default
         argv.append(f"--student={args.student}")
