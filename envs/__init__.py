@@ -1,6 +1,11 @@
 """Environment registry: ``envs.make(name, **overrides)`` -> a wrapped Brax ``Env``.
 
-Tasks are the paper's six. Pendulum is our JAX port of gymnasium's
+A built-in task is one ``TaskSpec`` in ``TASKS``: its constructor, display name, gymnasium id and time
+limit, the paper's budget, meta schedule and Table 2 numbers where the paper has them, and its default
+evaluation interval. Everything else (the config's defaults, Meta's schedule, the experiments' task lists
+and table names) reads the spec; adding a task is adding its entry (and its env's code) here.
+
+The built-in tasks are the paper's six. Pendulum is our JAX port of gymnasium's
 Pendulum-v1; the five MuJoCo tasks are gymnasium's v5 models
 (``source='gymnasium'``, the default and the reference) stepped by MJX
 (``physics='mjx'``) or by MuJoCo's own C engine from inside the program
@@ -9,9 +14,6 @@ default, picks it on a CPU: ``resolve_physics``), or, as an explicit fast
 option, brax's own simplified versions on MJX (``source='brax'``). Every env
 takes actions in [-1, 1] and is wrapped for the time limit, auto-reset and
 episode statistics (see ``envs/wrappers.py``).
-
-``TASKS`` also carries each task's per-paper protocol (budget, meta schedule),
-used by the experiment presets.
 
 Any other gymnasium MuJoCo env runs as ``gym:<Id>`` (e.g. ``gym:Walker2d-v5``, with keyword arguments
 ``gym:Ant-v5(ctrl_cost_weight=0.1)``): gymnasium's own env, its observation, reward, termination and reset
@@ -22,7 +24,9 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import importlib
 import io
+from typing import Callable
 
 # mujoco.mjx prints "Failed to import warp" on import when its optional GPU (Warp) backend is
 # not installed; that is expected here, so its stdout is swallowed for this one import.
@@ -33,26 +37,80 @@ from envs.wrappers import AutoResetWrapper, EpisodeWrapper
 
 
 @dataclasses.dataclass(frozen=True)
+class MetaSchedule:
+    """Algorithm 1's cycle where the paper gives a task its own (section 5.1); what ``--method=meta`` runs on
+    the task under the paper preset."""
+
+    explore_steps: int   # |D0| per cycle
+    eval_steps: int      # |D1| per cycle, per eval env
+    train_steps: int     # the student's DDPG updates per cycle (and the look-ahead's)
+    teacher_steps: int   # REINFORCE Adam steps per cycle
+
+
+@dataclasses.dataclass(frozen=True)
+class Table2Row:
+    """A task's row of the paper's Table 2 (Xu et al., 2018): final return, mean and std over 3 seeds, on gym's
+    v1 task (Pendulum-v0)."""
+
+    position: int                # the row's place in Table 2 (1 = first): the order the paper's grid lists tasks in
+    meta: tuple[float, float]    # Meta: mean, std
+    ddpg: tuple[float, float]    # DDPG: mean, std
+
+
+@dataclasses.dataclass(frozen=True)
 class TaskSpec:
-    """What the paper and gymnasium fix per task."""
+    """A task: how ``make`` builds it, and what the paper and gymnasium fix for it."""
 
     gym_id: str            # gymnasium id the default source reproduces
     episode_length: int    # gymnasium's TimeLimit
-    paper_budget: int      # total env steps per seed in the paper (section 5.1)
+    paper_budget: int      # total env steps per seed in the paper (section 5.1); else the default budget
     # Default evaluation interval in env steps; a multiple of the built-in explorers' cycles (the noise
     # baseline's 100 steps, the teacher's 300 or 3000) so that they report at the same sample counts and
     # the default budget is reachable.
     eval_every: int = 15_000
+    display_name: str = ""                # how tables and figures name the task ("HalfCheetah")
+    # The env of source 'gymnasium', as "module:attribute" (imported on first use): called with the keyword
+    # arguments of ``make``, it returns the task without wrappers.
+    entry_point: str = ""
+    brax_name: str | None = None          # brax's own env of source 'brax' (None: the gymnasium source only)
+    mujoco: bool = True                   # stepped by MuJoCo (MJX or the C engine); False: a JAX task
+    meta_schedule: MetaSchedule | None = None   # the paper's own cycle for the task; None: Algorithm 1's defaults
+    table2: Table2Row | None = None       # the paper's Table 2 numbers; None: a task the paper did not run
 
+
+# The paper's longer cycle (section 5.1: Half-Cheetah and Inverted Pendulum "need more explore rollout steps
+# (1000) to finish the task", with 2000 evaluation steps, 500 student updates and 100 teacher updates per cycle);
+# the other tasks keep Algorithm 1's defaults (100, 200, 50, 1; metapg_jax/strategies/meta.py).
+_LONG_CYCLE = MetaSchedule(explore_steps=1000, eval_steps=2000, train_steps=500, teacher_steps=100)
 
 TASKS: dict[str, TaskSpec] = {
-    "pendulum": TaskSpec("Pendulum-v1", 200, 900_000, eval_every=9_000),
-    "inverted_pendulum": TaskSpec("InvertedPendulum-v5", 1000, 1_500_000),
-    "inverted_double_pendulum": TaskSpec("InvertedDoublePendulum-v5", 1000, 1_500_000),
-    "hopper": TaskSpec("Hopper-v5", 1000, 1_000_000),
-    "halfcheetah": TaskSpec("HalfCheetah-v5", 1000, 1_500_000),
-    "reacher": TaskSpec("Reacher-v5", 50, 700_000, eval_every=6_000),
+    "pendulum": TaskSpec(
+        "Pendulum-v1", 200, 900_000, eval_every=9_000, display_name="Pendulum",
+        entry_point="envs.pendulum:Pendulum", mujoco=False,
+        table2=Table2Row(4, meta=(-123.0, 10.0), ddpg=(-206.0, 31.0))),
+    "inverted_pendulum": TaskSpec(
+        "InvertedPendulum-v5", 1000, 1_500_000, display_name="InvertedPendulum",
+        entry_point="envs.gym_mujoco:InvertedPendulum", brax_name="inverted_pendulum", meta_schedule=_LONG_CYCLE,
+        table2=Table2Row(2, meta=(745.0, 27.0), ddpg=(499.0, 23.0))),
+    "inverted_double_pendulum": TaskSpec(
+        "InvertedDoublePendulum-v5", 1000, 1_500_000, display_name="InvertedDoublePendulum",
+        entry_point="envs.gym_mujoco:InvertedDoublePendulum", brax_name="inverted_double_pendulum",
+        table2=Table2Row(1, meta=(7718.0, 277.0), ddpg=(2795.0, 1325.0))),
+    "hopper": TaskSpec(
+        "Hopper-v5", 1000, 1_000_000, display_name="Hopper",
+        entry_point="envs.gym_mujoco:Hopper", brax_name="hopper",
+        table2=Table2Row(3, meta=(205.0, 41.0), ddpg=(135.0, 42.0))),
+    "halfcheetah": TaskSpec(
+        "HalfCheetah-v5", 1000, 1_500_000, display_name="HalfCheetah",
+        entry_point="envs.gym_mujoco:HalfCheetah", brax_name="halfcheetah", meta_schedule=_LONG_CYCLE,
+        table2=Table2Row(5, meta=(2011.0, 339.0), ddpg=(1594.0, 298.0))),
+    "reacher": TaskSpec(
+        "Reacher-v5", 50, 700_000, eval_every=6_000, display_name="Reacher",
+        entry_point="envs.gym_mujoco:Reacher", brax_name="reacher",
+        table2=Table2Row(6, meta=(-12.16, 1.19), ddpg=(-11.67, 3.39))),
 }
+# The task a config names when none is given (``metapg_jax.config.make_config``, ``experiments.run``).
+DEFAULT_TASK = "pendulum"
 
 SOURCES = ("gymnasium", "brax")
 # Physics engines of the gymnasium MuJoCo tasks: MJX (JAX, float32; any accelerator) or MuJoCo's own
@@ -73,7 +131,7 @@ def resolve_physics(name: str, source: str, physics: str, backend: str | None = 
     'auto' is MuJoCo's C engine for a gymnasium MuJoCo task where JAX's default backend is the CPU
     (measured on 2 CPU cores: the main job compiled 8.0x and trained 2.3x faster there than on MJX;
     results/benchmarks/BENCHMARKS.md, "The main job"), and MJX on accelerators (the C engine runs on the host CPU), for brax's
-    models (MJX only) and for Pendulum (a JAX task: its value is irrelevant and stays 'mjx'). A ``gym:`` task
+    models (MJX only) and for a JAX task (Pendulum: its value is irrelevant and stays 'mjx'). A ``gym:`` task
     has the C engine only: 'auto' is 'mujoco' on every backend.
 
     Args:
@@ -85,7 +143,8 @@ def resolve_physics(name: str, source: str, physics: str, backend: str | None = 
         return physics
     if is_gym_task(name):
         return "mujoco"
-    if name == "pendulum" or source != "gymnasium":
+    spec = TASKS.get(name)
+    if (spec is not None and not spec.mujoco) or source != "gymnasium":
         return "mjx"
     if backend is None:
         import jax
@@ -119,6 +178,40 @@ def get_spec(name: str) -> TaskSpec:
     return TASKS[name]
 
 
+def display_name(name: str) -> str:
+    """How tables and figures name a task: its spec's ``display_name``, or a ``gym:`` task's gymnasium id with its
+    arguments (not checked against gymnasium); ``ValueError`` (one line) for an unknown task."""
+    if is_gym_task(name):
+        return name[len("gym:"):]
+    return get_spec(name).display_name
+
+
+def has_mujoco(name: str) -> bool:
+    """Whether MuJoCo steps the task (MJX or the C engine): every ``gym:`` task, and a built-in one whose spec says
+    so; False for a JAX task (Pendulum)."""
+    return is_gym_task(name) or get_spec(name).mujoco
+
+
+def paper_tasks() -> tuple[str, ...]:
+    """The built-in tasks of the paper's Table 2, in its order."""
+    rows = {name: spec.table2.position for name, spec in TASKS.items() if spec.table2 is not None}
+    return tuple(sorted(rows, key=rows.__getitem__))
+
+
+def constructor(name: str, source: str = "gymnasium") -> Callable[..., Env]:
+    """What builds a built-in task without wrappers from keyword arguments: its spec's ``entry_point`` (source
+    'gymnasium') or brax's own env (``'brax'``); ``ValueError`` (one line) for a task the source lacks."""
+    spec = get_spec(name)
+    if source == "brax":
+        if spec.brax_name is None:
+            raise ValueError(f"{name} has only the gymnasium source (brax has no {spec.display_name})")
+        from envs.brax_mujoco import brax_task
+
+        return brax_task(spec.brax_name)
+    module, attribute = spec.entry_point.split(":")
+    return getattr(importlib.import_module(module), attribute)
+
+
 def check_physics(name: str, source: str, physics: str) -> None:
     """Raises ``ValueError`` (one line) for an engine the task or source cannot use."""
     if physics not in PHYSICS:
@@ -132,9 +225,9 @@ def check_physics(name: str, source: str, physics: str) -> None:
                              f"and termination are gymnasium's own Python code, called on the host every step, "
                              f"which MJX (traced into the program) cannot run")
         return
-    if physics == "mujoco" and name == "pendulum":
-        raise ValueError("pendulum is a JAX task without MuJoCo physics: --physics=mujoco applies to the "
-                         "five MuJoCo tasks (use the default for pendulum)")
+    if physics == "mujoco" and not get_spec(name).mujoco:
+        raise ValueError(f"{name} is a JAX task without MuJoCo physics: --physics=mujoco applies to the "
+                         f"MuJoCo tasks (use the default for {name})")
     if physics == "mujoco" and source != "gymnasium":
         raise ValueError(f"--physics=mujoco steps gymnasium's models; source {source!r} has only MJX "
                          f"(use --source=gymnasium or --physics=mjx)")
@@ -152,16 +245,7 @@ def make_raw(name: str, source: str = "gymnasium", physics: str = "mjx", physics
         from envs.gym_generic import GymnasiumCEnv
 
         return GymnasiumCEnv(name, threads=physics_threads, **overrides)
-    if name == "pendulum":
-        if source != "gymnasium":
-            raise ValueError("pendulum has only the gymnasium source (our JAX port of Pendulum-v1)")
-        from envs.pendulum import Pendulum
-
-        return Pendulum(**overrides)
-    from envs import brax_mujoco, gym_mujoco
-
-    table = gym_mujoco.GYMNASIUM_TASKS if source == "gymnasium" else brax_mujoco.BRAX_TASKS
-    task = table[name](**overrides)
+    task = constructor(name, source)(**overrides)
     if physics == "mujoco":
         from envs.mujoco_c import MujocoCEnv
 

@@ -14,9 +14,10 @@ import jax.numpy as jnp
 from brax import envs as brax_envs
 from brax.envs.base import Env, State, Wrapper
 
+import envs
 from envs.mujoco_base import without_the_settotalmass_warning
 
-__all__ = ["BraxTaskAdapter", "BRAX_TASKS"]
+__all__ = ["BraxTaskAdapter", "BRAX_TASKS", "brax_task"]
 
 
 class BraxTaskAdapter(Wrapper):
@@ -68,7 +69,9 @@ class BraxTaskAdapter(Wrapper):
         )
 
 
-def _brax_task(name: str) -> Callable[..., Env]:
+def brax_task(name: str) -> Callable[..., Env]:
+    """brax's own env ``name`` on MJX under the contract, as a constructor taking its keyword arguments."""
+
     def make(**overrides) -> Env:
         with without_the_settotalmass_warning():
             env = brax_envs.get_environment(name, backend="mjx", **overrides)
@@ -79,13 +82,8 @@ def _brax_task(name: str) -> Callable[..., Env]:
     return make
 
 
+# brax's version of each built-in task that has one, by task name: a view of their specs (envs.TASKS,
+# ``brax_name``) for code that builds them directly.
 BRAX_TASKS: Dict[str, Callable[..., Env]] = {
-    name: _brax_task(name)
-    for name in (
-        "inverted_pendulum",
-        "inverted_double_pendulum",
-        "hopper",
-        "halfcheetah",
-        "reacher",
-    )
+    name: brax_task(spec.brax_name) for name, spec in envs.TASKS.items() if spec.brax_name is not None
 }

@@ -168,7 +168,7 @@ def task_spec(name: str):
                          f"(its own: {', '.join(takes(cls))})")
     if spec.max_episode_steps is None:
         raise ValueError(f"{name}: {gym_id} is registered without a time limit (max_episode_steps)")
-    return TaskSpec(gym_id, int(spec.max_episode_steps), DEFAULT_BUDGET)
+    return TaskSpec(gym_id, int(spec.max_episode_steps), DEFAULT_BUDGET, display_name=name[len("gym:"):])
 
 
 def make_gymnasium_env(name: str, **overrides):

@@ -50,6 +50,7 @@ import jax.numpy as jnp
 import mujoco
 from brax.envs.base import Env
 
+import envs
 from envs.mujoco_base import GymMujocoEnv, _norm, _square
 
 __all__ = [
@@ -385,10 +386,9 @@ class Reacher(GymMujocoEnv):
         metrics = {"reward_dist": reward_dist, "reward_ctrl": reward_ctrl}
         return reward_dist + reward_ctrl, xp.zeros(reward_dist.shape, bool), metrics
 
+
+# The built-in MuJoCo tasks' envs of source 'gymnasium', by task name: a view of their specs (envs.TASKS,
+# ``entry_point``) for code that builds them directly.
 GYMNASIUM_TASKS: Dict[str, Callable[..., Env]] = {
-    "inverted_pendulum": InvertedPendulum,
-    "inverted_double_pendulum": InvertedDoublePendulum,
-    "hopper": Hopper,
-    "halfcheetah": HalfCheetah,
-    "reacher": Reacher,
+    name: envs.constructor(name) for name, spec in envs.TASKS.items() if spec.mujoco
 }

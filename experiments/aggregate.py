@@ -27,7 +27,7 @@ import sys
 import numpy as np
 
 from experiments.build import stats
-from experiments.build.grid import METHOD_NAMES, TASK_NAMES, noise_methods, task_name
+from experiments.build.grid import METHOD_NAMES, noise_methods, task_name
 
 PROFILE_TAUS = np.linspace(0.0, 2.0, 81)  # the profiles' thresholds, widened where a seed scores above 2
 
@@ -116,7 +116,7 @@ def markdown(rep: dict, title: str, labels: dict | None = None) -> str:
                  f"{task_name(t)} {stats.fmt(a['random_return'])} → {stats.fmt(a['reference_return'])}"
                  for t, a in rep["anchors"].items()) + " (results/normalisation.json).",
              *(["- a method with no cell of its own on a task is scored with the cell it equals there: " + "; ".join(
-                 f"{TASK_NAMES.get(k.split('/')[0], k.split('/')[0])} {labels.get(k.split('/')[1], k.split('/')[1])} = "
+                 f"{task_name(k.split('/')[0])} {labels.get(k.split('/')[1], k.split('/')[1])} = "
                  f"{labels.get(v, v)}" for k, v in rep["standing_for"].items()) + "."] if rep.get("standing_for") else []),
              *([f"- left out (not finished on every task): {', '.join(names(rep['variants_not_on_every_task']))}."]
                if rep.get("variants_not_on_every_task") else []),

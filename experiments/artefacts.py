@@ -55,17 +55,18 @@ import os
 import sys
 from typing import Sequence
 
-from experiments.build import behaviour, cells, figures, readme, tables
-from experiments.build.grid import BASELINES, GRIDS, TASKS, baseline_for, grid_label, methods_for
+from experiments.build import behaviour, cells, figures, grid, readme, tables
+from experiments.build.grid import BASELINES, GRIDS, baseline_for, grid_label, methods_for
 
 
-def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Sequence[str] = TASKS,
+def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Sequence[str] | None = None,
               methods: Sequence[str] | None = None, embedding: str = "tsne", visitation_tasks: Sequence[str] | None = None,
               points_per_panel: int = 500, extra_provenance: dict | None = None, student: str = "ddpg",
               anchors_path: str | None = None) -> dict:
     """Rebuilds every artefact from ``<runs_dir>/<preset>/<task>/<method>``; returns the manifest.
 
-    ``methods`` defaults to ``student``'s grid (``experiments.build.grid.methods_for``). Finished run folders are
+    ``tasks`` defaults to the grid's (``experiments.build.grid.tasks``), ``methods`` to ``student``'s grid
+    (``experiments.build.grid.methods_for``). Finished run folders are
     first copied into the committed archive ``<results>/cells/<task>/<method>`` (``cells.archive_cell``);
     cells without a finished run folder are read from there. The tables show the tasks and methods with a
     stored cell (the grid's others are listed in README.md and the manifest, not shown as "not run").
@@ -73,6 +74,7 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
     the aggregate scores and of the verdicts' equivalence margins."""
     from experiments import aggregate, normalisation
 
+    tasks = grid.tasks() if tasks is None else tasks
     methods = methods_for(student) if methods is None else tuple(methods)
     out_dir = cells.results_dir_for(results_dir, preset)
     os.makedirs(out_dir, exist_ok=True)
@@ -153,7 +155,7 @@ def add_figure_options(p: argparse.ArgumentParser) -> None:
     """The state-visitation figure's options, shared by this module's CLI and experiments.reproduce."""
     p.add_argument("--embedding", default="tsne", choices=("tsne", "pca"),
                    help="2-D embedding of the state-visitation figure (pca is fast)")
-    p.add_argument("--visitation-task", action="append", choices=TASKS, default=None,
+    p.add_argument("--visitation-task", action="append", choices=grid.tasks(), default=None,
                    help="build the state-visitation figure for this task only (repeatable; default: every task "
                         "whose Meta (independent) and DDPG baseline cells stored their visited states)")
 

@@ -219,9 +219,9 @@ def main(argv: list[str] | None = None) -> int:
     strategies = ([grid_strategy(name) for name in args.strategies.split(",")] if args.strategies else
                   [{"method": m} for m in args.methods.split(",")])
     specs = [{"env": e, **m, "preset": pr, "seeds": int(s), "repeats": args.repeats,
-              "target_steps": args.target_steps or (3000 if e == "pendulum" else 600),
-              "stock_mjx": args.stock_mjx and e != "pendulum", "plain_vmap": args.plain_vmap, "physics": ph}
-             for e in tasks for ph in (["mjx"] if e == "pendulum" else physics)
+              "target_steps": args.target_steps or (600 if envs.has_mujoco(e) else 3000),
+              "stock_mjx": args.stock_mjx and envs.has_mujoco(e), "plain_vmap": args.plain_vmap, "physics": ph}
+             for e in tasks for ph in (physics if envs.has_mujoco(e) else ["mjx"])
              for m in strategies for pr in args.presets.split(",") for s in args.seeds.split(",")]
     rows, failed = [], []
     if args.append and os.path.exists(json_path):

@@ -9,7 +9,7 @@ them), archives each with its provenance and rebuilds ``results/<name>/``.
     python -m experiments.benchmark --launcher ray --ray-address auto
     python -m experiments.benchmark --artefacts-only             # rebuild results/exploration from what is stored
 
-The default plan: the paper's six tasks (``experiments.build.grid.TASKS``), both students (TD3, SAC) with every one
+The default plan: the paper's six tasks (``experiments.build.grid.tasks``), both students (TD3, SAC) with every one
 of their strategies (``experiments.build.grid.STRATEGIES``: TD3 with Gaussian, Ornstein-Uhlenbeck, adaptive
 parameter and colored noise, per-episode noise scales, the paper's teacher and the tuned teacher; SAC with its own
 policy, white or colored, and the paper's teacher), 10 seeds per cell from base seed 1000 (one no earlier grid in
@@ -56,10 +56,12 @@ import sys
 import tempfile
 import time
 
+import envs
 from experiments import reproduce
 from experiments.build import benchmark as artefacts
-from experiments.build.grid import (LEARNED, METHODS, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, TASKS,
-                                    baseline_for, task_folder)
+from experiments.build import grid
+from experiments.build.grid import (LEARNED, METHODS, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, baseline_for,
+                                    task_folder)
 from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
 from experiments.grid.spec import CellSpec
 from experiments.training import grid_cells
@@ -79,8 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
     learned = "; ".join(f"{s}: {', '.join(m)}" for s, m in LEARNED.items())
     p = argparse.ArgumentParser(prog="python -m experiments.benchmark", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--tasks", default=",".join(TASKS),
-                   help=f"comma-separated tasks, {', '.join(TASKS)} or gym:<Id> (default: the paper's six)")
+    p.add_argument("--tasks", default=",".join(grid.tasks()),
+                   help=f"comma-separated tasks, {', '.join(envs.TASKS)} or gym:<Id> (default: the paper's six)")
     p.add_argument("--students", default=",".join(DEFAULT_STUDENTS),
                    help=f"comma-separated students (default {','.join(DEFAULT_STUDENTS)})")
     p.add_argument("--strategies", default=None,
@@ -111,16 +113,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def parse_tasks(text: str) -> list[str]:
-    """The ``--tasks`` list: paper tasks or ``gym:<Id>`` tasks (``envs.get_spec`` checks them), each once."""
-    from envs import get_spec
+    """The ``--tasks`` list: built-in tasks or ``gym:<Id>`` tasks (``envs.get_spec`` checks them), each once."""
 
     tasks = [t.strip() for t in re.split(r",(?![^()]*\))", text) if t.strip()]  # commas inside gym:Id(...) stay
     if not tasks:
         raise ValueError("--tasks names no task")
     for t in tasks:
-        if t not in TASKS and not t.startswith("gym:"):
-            raise ValueError(f"unknown task {t!r}; valid tasks: {', '.join(TASKS)}, or gym:<Id>")
-        get_spec(t)
+        if t not in envs.TASKS and not envs.is_gym_task(t):
+            raise ValueError(f"unknown task {t!r}; valid tasks: {', '.join(envs.TASKS)}, or gym:<Id>")
+        envs.get_spec(t)
     if len(set(tasks)) != len(tasks) or len({task_folder(t) for t in tasks}) != len(tasks):
         raise ValueError("--tasks lists a task twice")
     return tasks

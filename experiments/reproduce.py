@@ -7,8 +7,8 @@
     python -m experiments.reproduce --artefacts-only --embedding pca  # no training, rebuild from what is stored
 
 Each grid cell is one ``experiments.run.main`` call writing
-``<runs-dir>/<preset>/<task>/<method>``, run one after another in the paper's
-task order (InvertedDoublePendulum first). Run folders are not committed
+``<runs-dir>/<preset>/<task>/<method>``, run one after another in ``RUN_ORDER``
+(InvertedDoublePendulum first). Run folders are not committed
 (checkpoints are large); every finished cell's results (config, metrics,
 summary, provenance, a thinned state-visitation sample) are copied into the
 committed archive ``<results-dir>/cells/<task>/<method>`` when the artefacts
@@ -49,7 +49,8 @@ import time
 
 from experiments.artefacts import add_figure_options, build_all
 from experiments.build.cells import results_dir_for
-from experiments.build.grid import BASELINES, GRIDS, TASKS, baseline_for, methods_for
+from experiments.build import grid
+from experiments.build.grid import BASELINES, GRIDS, baseline_for, methods_for
 from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
 from experiments.training import grid_cells
 
@@ -57,6 +58,8 @@ from experiments.training import grid_cells
 MUJOCO_RUNS, MUJOCO_RESULTS = "runs/reproduce-mujoco", "results/mujoco"
 # Where a student other than DDPG keeps its grid by default (whatever the physics): runs/reproduce-<student>
 # and results/<student>.
+# The order a full grid runs its tasks in: this study's choice (the grid's tasks are the paper's,
+# experiments.build.grid.tasks; test_reproduce checks that this lists each once).
 RUN_ORDER = ("inverted_double_pendulum", "pendulum", "inverted_pendulum", "reacher", "hopper", "halfcheetah")
 DEFAULT_SEEDS = 8
 
@@ -116,15 +119,16 @@ def run_parsed(args: argparse.Namespace, argv: list[str]) -> int:
     if args.results_dir is None:
         args.results_dir = f"results/{args.student}" if other else MUJOCO_RESULTS if mujoco else "results"
     try:
-        tasks = parse_list(args.tasks, TASKS, "task")
+        tasks = parse_list(args.tasks, grid.tasks(), "task")
         if mujoco and args.source != "gymnasium":
             raise ValueError(f"--physics=mujoco steps gymnasium's models; source {args.source!r} has only MJX")
         grid_methods = methods_for(args.student)
         methods = parse_list(args.methods or ",".join(grid_methods), grid_methods, "method")
         check_grid_options(args, trains=not args.artefacts_only and not args.dry_run)
-        grid = grid_run(args, args.runs_dir, args.results_dir, args.preset, baseline_for(args.preset, args.student))
+        placement = grid_run(args, args.runs_dir, args.results_dir, args.preset,
+                             baseline_for(args.preset, args.student))
         spec = grid_spec(args, args.preset, args.student, args.source)
-        cells = [grid_cells.grid_cell(grid, spec, t, m) for t in tasks for m in methods]
+        cells = [grid_cells.grid_cell(placement, spec, t, m) for t in tasks for m in methods]
         if not args.artefacts_only:
             grid_cells.validate_cells(cells)
     except ValueError as err:

@@ -26,9 +26,10 @@ import functools
 import os
 import sys
 
+import envs
 from experiments import ablation, reproduce
 from experiments.build import cells, stats
-from experiments.build.grid import TASK_NAMES
+from experiments.build.grid import task_name
 from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
 from experiments.grid.spec import Method
 from experiments.training import grid_cells
@@ -83,13 +84,13 @@ def cell_options(task: str, name: str, physics: str) -> Method | None:
 
 def plan(a: argparse.Namespace) -> list[grid_cells.Cell]:
     """Every cell to run, configs validated before anything trains."""
-    tasks = reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
+    tasks = reproduce.parse_list(a.tasks, tuple(envs.TASKS), "task")
     names = reproduce.parse_list(a.variants, tuple(VARIANTS), "variant")
     check_grid_options(a, trains=not a.report_only and not a.dry_run)
     # Each run's own PNGs are never drawn: the report draws the curves.
-    grid = grid_run(a, a.runs_dir, a.results_dir, "paper", BASELINES[0], no_plot=True)
+    placement = grid_run(a, a.runs_dir, a.results_dir, "paper", BASELINES[0], no_plot=True)
     spec = grid_spec(a, "paper")
-    out = [grid_cells.grid_cell(grid, spec, task, name, options, key=(task, name), tag=f"{task}/{name}")
+    out = [grid_cells.grid_cell(placement, spec, task, name, options, key=(task, name), tag=f"{task}/{name}")
            for task in tasks for name in names if (options := cell_options(task, name, a.physics)) is not None]
     grid_cells.validate_cells(out)
     return out
@@ -152,7 +153,7 @@ def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "
     """The report; ``by_task``: task -> ``task_rows``' (rows, missing); ``judged``: ``verdicts``' result."""
     tasks = list(by_task)
     judged = verdicts(by_task) if judged is None else judged
-    lines = [f"# Screen of teacher variants ({', '.join(TASK_NAMES[t] for t in tasks)}, {upto:,} env steps, "
+    lines = [f"# Screen of teacher variants ({', '.join(task_name(t) for t in tasks)}, {upto:,} env steps, "
              f"{seeds} seeds)", "",
              "Algorithm 1's knobs changed one at a time from the paper preset (`python -m experiments.screen`, "
              "MuJoCo's C engine, base seed 0), next to the paper's teacher and both DDPG noise baselines on the "
@@ -171,7 +172,7 @@ def markdown(by_task: dict, upto: int, seeds: int, build: dict, physics: str = "
         lines.append(f"| {v.label} | {v.change} | {v.hypothesis} |")
     for task in tasks:
         rows, missing = by_task[task]
-        lines += ["", f"## {TASK_NAMES[task]}", ""]
+        lines += ["", f"## {task_name(task)}", ""]
         if not rows:
             lines.append(f"The paper teacher's cell is not finished: nothing is compared ({len(VARIANTS)} cells "
                          "not run or not finished).")
@@ -280,7 +281,7 @@ def run_parsed(a: argparse.Namespace, argv: list[str] | None = None) -> int:
         status = run_cells(a, todo)
     if a.dry_run:
         return status
-    tasks = list(dict.fromkeys(cell.task for cell in todo)) or reproduce.parse_list(a.tasks, tuple(TASK_NAMES), "task")
+    tasks = list(dict.fromkeys(cell.task for cell in todo)) or reproduce.parse_list(a.tasks, tuple(envs.TASKS), "task")
     files = write_report(a.results_dir, tasks, a.steps, a.seeds, a.physics)
     print("wrote " + ", ".join(files), flush=True)
     return status

@@ -11,8 +11,8 @@ def _default_to_deterministic_gpu_ops() -> None:
     killed and resumed in a new process differed from the uninterrupted run from its first metrics
     row on; with this flag the two were equal; results/benchmarks/gpu/README.md). XLA reads XLA_FLAGS
     when the first computation runs, so this must happen before that: importing metapg_jax first
-    suffices. CPU-only jaxlib accepts and ignores the flag. It costs speed on a GPU (H200: Pendulum
-    Meta at 64 seeds trained at 0.78x, MJX HalfCheetah stepping at 512 envs ran at 0.93x;
+    suffices. CPU-only jaxlib accepts and ignores the flag. It costs speed on a GPU (H200: Meta at 64
+    seeds on the JAX task trained at 0.78x, MJX stepping of a MuJoCo task at 512 envs ran at 0.93x;
     results/benchmarks/gpu/README.md, fourth check). Opt out with XLA_FLAGS=--xla_gpu_deterministic_ops=false
     where bit-for-bit resume does not matter.
     """

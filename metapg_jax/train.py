@@ -5,7 +5,7 @@ Builds the student of ``config.student`` and the explorer of ``config.run.method
 evaluation interval) and ``train(key)`` (the whole run as one program). Seeds are a vmap over keys
 (``seed_keys``; ``vmap_seeds`` names the seed axis):
 
-    trainer = make_train(make_config("pendulum", method="meta", student="td3"))
+    trainer = make_train(make_config(method="meta", student="td3"))   # the default task
     state, metrics = jax.jit(jax.vmap(trainer.train))(seed_keys(0, 8))
 """
 

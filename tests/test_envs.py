@@ -1,4 +1,8 @@
-"""Registry, wrappers (time limit, auto-reset, flags, statistics) and the JAX Pendulum."""
+"""Registry (a task is one spec), wrappers (time limit, auto-reset, flags, statistics) and the JAX Pendulum."""
+
+import dataclasses
+import os
+import re
 
 import gymnasium
 import jax
@@ -11,12 +15,74 @@ import envs
 from envs.pendulum import Pendulum
 from envs.wrappers import AutoResetWrapper, EpisodeWrapper
 
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
 
 def test_unknown_task_lists_valid_names():
     with pytest.raises(ValueError, match="valid tasks: pendulum, inverted_pendulum"):
         envs.make("cartpole")
     with pytest.raises(ValueError, match="valid sources"):
         envs.make("hopper", source="dm_control")
+
+
+def test_a_task_added_to_the_registry_alone_gets_its_schedule_budget_and_name_from_its_spec(monkeypatch):
+    """One spec in ``envs.TASKS`` is the whole task: the config, Meta's schedule, the tables' name and the engine
+    choice read it; no other module lists it."""
+    from experiments.build import grid
+    from experiments.training.args import physics_label
+    from metapg_jax.config import make_config, validate
+
+    spec = dataclasses.replace(envs.TASKS["pendulum"], paper_budget=60_000, eval_every=6_000, display_name="Toy",
+                               meta_schedule=envs.MetaSchedule(200, 400, 100, 2), table2=None)
+    monkeypatch.setitem(envs.TASKS, "toy", spec)
+    meta = validate(make_config("toy", "meta"))
+    assert (meta.meta.explore_steps, meta.meta.eval_steps, meta.run.train_steps, meta.meta.teacher_steps) == \
+        (200, 400, 100, 2)
+    assert (meta.run.total_steps, meta.run.eval_every, meta.env.physics) == (60_000, 6_000, "mjx")
+    ddpg = validate(make_config("toy", "ddpg"))
+    assert (ddpg.run.total_steps, ddpg.run.eval_every, ddpg.run.train_steps) == (60_000, 6_000, 50)
+    assert envs.display_name("toy") == grid.task_name("toy") == "Toy"
+    assert not envs.has_mujoco("toy") and physics_label(meta) == "JAX"
+    assert "toy" not in grid.tasks()  # the paper's grid: the tasks with a Table 2 row
+    env = envs.make("toy")
+    assert (env.observation_size, env.action_size) == (3, 1)
+    # Without a schedule of its own, Algorithm 1's defaults; a MuJoCo task's constructors are its spec's.
+    monkeypatch.setitem(envs.TASKS, "toy", dataclasses.replace(spec, meta_schedule=None))
+    meta = make_config("toy", "meta")
+    assert (meta.meta.explore_steps, meta.meta.eval_steps, meta.run.train_steps, meta.meta.teacher_steps) == \
+        (100, 200, 50, 1)
+    monkeypatch.setitem(envs.TASKS, "toy_hopper", dataclasses.replace(envs.TASKS["hopper"], display_name="ToyHopper"))
+    assert envs.constructor("toy_hopper") is envs.constructor("hopper")
+    assert envs.constructor("toy_hopper", "brax").__name__ == "brax_hopper"
+    assert envs.has_mujoco("toy_hopper") and envs.resolve_physics("toy_hopper", "gymnasium", "auto", "cpu") == "mujoco"
+    with pytest.raises(ValueError, match="toy has only the gymnasium source"):
+        envs.constructor("toy", "brax")
+
+
+def test_the_paper_tasks_are_table_2s_rows_in_its_order():
+    assert envs.paper_tasks() == ("inverted_double_pendulum", "inverted_pendulum", "hopper", "pendulum", "halfcheetah",
+                                  "reacher")
+    assert [envs.display_name(t) for t in envs.paper_tasks()] == [
+        "InvertedDoublePendulum", "InvertedPendulum", "Hopper", "Pendulum", "HalfCheetah", "Reacher"]
+    assert envs.display_name("gym:Ant-v5(ctrl_cost_weight=0.1)") == "Ant-v5(ctrl_cost_weight=0.1)"
+
+
+def test_the_library_names_no_built_in_task():
+    """No file under metapg_jax/ names a built-in task, by its name or its display name, anywhere (code, strings,
+    comments, docstrings): what a task needs is in its spec, which the library reads (``envs.DEFAULT_TASK`` is the
+    default task)."""
+    names = sorted({n for name, spec in envs.TASKS.items() for n in (name, spec.display_name)}, key=len, reverse=True)
+    pattern = re.compile(r"(?<![A-Za-z0-9_])(" + "|".join(map(re.escape, names)) + r")(?![A-Za-z0-9_])", re.IGNORECASE)
+    assert pattern.search(open(envs.__file__).read())  # the check sees a name where one is
+    found = {}
+    for folder, dirs, files in os.walk(os.path.join(ROOT, "metapg_jax")):
+        dirs[:] = [d for d in dirs if d != "__pycache__"]
+        for f in (f for f in files if f.endswith(".py")):
+            path = os.path.join(folder, f)
+            hits = sorted({m.group(0) for m in pattern.finditer(open(path).read())})
+            if hits:
+                found[os.path.relpath(path, ROOT)] = hits
+    assert found == {}
 
 
 def test_pendulum_step_matches_hand_computation():

@@ -30,6 +30,12 @@ def test_reproduce_rejects_bad_input(capsys):
     assert reproduce.main(["--seeds", "0"]) == 2
 
 
+def test_the_run_order_lists_each_of_the_grids_tasks_once():
+    from experiments.build import grid
+
+    assert sorted(reproduce.RUN_ORDER) == sorted(grid.tasks()) and len(set(reproduce.RUN_ORDER)) == len(grid.tasks())
+
+
 def test_reproduce_checks_every_cell_before_the_first_runs(tmp_path, capsys):
     """1000 steps fit DDPG's 100-step cycle but not Meta's 300 on pendulum: refused before DDPG trains."""
     runs = tmp_path / "runs"

@@ -13,9 +13,11 @@ def engines_markdown(rows: list[dict]) -> list[str]:
     """The two engines side by side, from rows measured on the same date: training throughput with
     MuJoCo's C engine over MJX's; for the C rows, the share of full training time that the DDPG updates
     alone take (1 = physics and bookkeeping cost nothing on top of the updates) and the cold compile."""
+    import envs  # brax on import: only when the table is written
+
     key = lambda r: (r["env"], r["method"], r["preset"], r["seeds"], _date(r))
     mjx = {key(r): r for r in rows if r.get("physics", "mjx") == "mjx" and not r.get("stock_mjx")
-           and not r.get("plain_vmap") and r["env"] != "pendulum"}
+           and not r.get("plain_vmap") and envs.has_mujoco(r["env"])}
     c_rows = [r for r in rows if r.get("physics") == "mujoco"]
     if not c_rows:
         return []

@@ -143,7 +143,7 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
     ours, ours_times, compile_s, traj = time_ours()
     out = {"task": task, "num_envs": num_envs, "steps": steps, "compile_s": compile_s,
            "ours_steps_per_s": ours, "ours_times": ours_times}
-    if task != "pendulum":
+    if envs.has_mujoco(task):
         threads = default_threads()
         c, c_times, c_compile_s, _ = time_ours(physics="mujoco")
         out.update(c_steps_per_s=c, c_times=c_times, c_compile_s=c_compile_s, c_over_mjx=c / ours,

@@ -155,9 +155,11 @@ def seed_scaling(rows: list[dict]) -> dict:
 
 def write_markdown(rows: list[dict], path: str, meta: dict, section: str = "training") -> None:
     """The rows' table as the generated ``section`` of ``path`` (``training``; ``strategies`` for grid methods)."""
+    import envs  # brax on import: only when the table is written
+
     scaling = seed_scaling(rows)
     dates = sorted({_date(r) for r in rows})
-    rows = sorted(rows, key=lambda r: (r["env"] != "pendulum", r["env"], r["preset"], r["method"], _date(r),
+    rows = sorted(rows, key=lambda r: (envs.has_mujoco(r["env"]), r["env"], r["preset"], r["method"], _date(r),
                                        _variant(r), r["seeds"]))
     lines = [
         f"`python -m experiments.bench`, rows measured on {', '.join(dates)} ({meta['machine']}; jax {meta['jax']}, "

@@ -11,7 +11,7 @@ from typing import Sequence
 import numpy as np
 
 from experiments.build.cells import BEHAVIOUR_METRICS
-from experiments.build.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, grid_label
+from experiments.build.grid import BASELINE, META, METHOD_NAMES, grid_label, task_name
 from experiments.build.stats import BOOTSTRAP_REPS, BOOTSTRAP_SEED, final_returns, fmt, mean_std
 from experiments.build.tables import write_md_and_json
 
@@ -111,7 +111,7 @@ def write_behaviour(rows: list[dict], out_dir: str, footer: str, preset: str, bu
           "- first: the seed mean of the first chunk (the first evaluation interval); final: mean ± std over "
           "seeds of each seed's mean over the final return's window (the last max(1, floor(T/10)) chunks)."]
     for task in dict.fromkeys(r["task"] for r in rows):
-        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
+        md += ["", f"## {task_name(task)}", "",
                "| method | seeds | final evaluation return | " +
                " | ".join(f"{label}, first | {label}, final" for _, label in BEHAVIOUR_COLUMNS) + " |",
                "|---|---|---|" + "---|---|" * len(BEHAVIOUR_COLUMNS)]
@@ -221,7 +221,7 @@ def write_coverage(coverage: dict, out_dir: str, footer: str, preset: str, basel
           "seed); 'higher' / 'lower' where the 95% interval excludes 0."]
     for task in dict.fromkeys(r["task"] for r in coverage["rows"]):
         rows = [r for r in coverage["rows"] if r["task"] == task]
-        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
+        md += ["", f"## {task_name(task)}", "",
                f"{rows[0]['states_per_seed']} states per seed and group.", "",
                "| phase | group | seeds | " + " | ".join(measures.values()) + " |", "|---|---|---|---|---|---|"]
         for r in rows:

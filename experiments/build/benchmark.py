@@ -28,8 +28,8 @@ from typing import Sequence
 import numpy as np
 
 from experiments.build import cells, stats, tables
-from experiments.build.grid import (LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, TASK_NAMES,
-                                    noise_methods, task_folder, task_name)
+from experiments.build.grid import (LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, noise_methods,
+                                    task_folder, task_name)
 
 # The preset of every student's grid (a grid method with a preset of its own, the tuned teacher, keeps it).
 PRESET = "paper"
@@ -397,7 +397,7 @@ def cost_rows(results: dict, entries: Sequence[Entry], tasks: Sequence[str]) -> 
     the last call's compile seconds (summary.json), env steps per second (seeds x env steps / training seconds)
     and the machine's CPU count; for a finished cell of a paper task, what the same cell would take at the
     paper's budget (``paper_budget_projection``)."""
-    from envs import default_budget
+    from envs import default_budget, paper_tasks
 
     out = []
     for t in tasks:
@@ -418,7 +418,7 @@ def cost_rows(results: dict, entries: Sequence[Entry], tasks: Sequence[str]) -> 
                         "train_seconds": train, "compile_seconds": r.summary.get("compile_seconds"),
                         "env_steps_per_second": round(steps / train, 1) if train else None,
                         "cpu_count": (prov["machine"] or {}).get("cpu_count"), "physics": prov["physics"]})
-            if r.complete and t in TASK_NAMES:
+            if r.complete and t in paper_tasks():
                 out[-1].update(paper_budget_projection(out[-1], default_budget(t)))
     return out
 

@@ -15,7 +15,8 @@ from typing import Iterable
 
 import numpy as np
 
-from experiments.build.grid import BASELINE, LEARNED_METHODS, META, METHODS, TASKS, task_folder
+from experiments.build import grid
+from experiments.build.grid import BASELINE, LEARNED_METHODS, META, METHODS, task_folder
 from experiments.build.stats import final_returns
 from metapg_jax.host import metric_rows, provenance, runfiles
 
@@ -93,16 +94,17 @@ def read_json(path: str) -> dict:
         return json.load(f)
 
 
-def collect(preset_dir: str, tasks: Iterable[str] = TASKS, methods: Iterable[str] = METHODS,
+def collect(preset_dir: str, tasks: Iterable[str] | None = None, methods: Iterable[str] = METHODS,
             archive_dir: str | None = None) -> dict:
-    """{(task, method): RunResult} for the cells of ``<preset_dir>/<task>/<method>`` that have evaluations.
+    """{(task, method): RunResult} for the cells of ``<preset_dir>/<task>/<method>`` that have evaluations
+    (``tasks``: default the grid's, ``grid.tasks``).
 
     With ``archive_dir`` (the committed copies, see ``archive_cell``), a cell that has no finished run
     under ``preset_dir`` is read from ``<archive_dir>/<task>/<method>`` when a finished one is archived
     there: run folders are not committed, so a fresh clone has only the archive. (A ``gym:`` task's folder is
     ``grid.task_folder``'s name for it.)"""
     out = {}
-    for task in tasks:
+    for task in grid.tasks() if tasks is None else tasks:
         for method in methods:
             r = load_run(os.path.join(preset_dir, task_folder(task), method), task, method)
             if archive_dir is not None and (r is None or not r.complete):
@@ -202,10 +204,12 @@ def stored_diffs(r: RunResult) -> list[str]:
 
 
 def cell_physics(r: RunResult) -> tuple[str, bool]:
-    """(engine, recorded): the physics engine the cell's config names ('jax' for Pendulum, which has no MuJoCo
+    """(engine, recorded): the physics engine the cell's config names ('jax' for a JAX task, which has no MuJoCo
     model); a config without the field predates MuJoCo's C engine in this project, so its cell ran on MJX, the
     only engine then (recorded False)."""
-    if r.task == "pendulum":
+    import envs  # brax on import: only when a cell's engine is asked for
+
+    if not envs.has_mujoco(r.task):
         return "jax", True
     physics = r.config.get("env", {}).get("physics")
     return (physics, True) if physics else ("mjx", False)

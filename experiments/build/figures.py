@@ -11,7 +11,8 @@ from typing import Sequence
 
 import numpy as np
 
-from experiments.build.grid import BASELINE, META, METHOD_NAMES, TASK_NAMES, TASKS, baseline_for, grid_label
+from experiments.build import grid
+from experiments.build.grid import BASELINE, META, METHOD_NAMES, baseline_for, grid_label, task_name
 
 # Line colour of each grid method in every figure.
 METHOD_COLORS = {"meta-independent": "tab:red", "meta-variance": "tab:orange",
@@ -68,7 +69,7 @@ def write_curves(results: dict, tasks: Sequence[str], methods: Sequence[str], ou
             continue
         fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=120)
         _plot_methods(ax, results, task, methods)
-        ax.set_title(f"{TASK_NAMES.get(task, task)} ({grid_label(preset, student)}): mean ± std over seeds", fontsize=10)
+        ax.set_title(f"{task_name(task)} ({grid_label(preset, student)}): mean ± std over seeds", fontsize=10)
         fig.tight_layout()
         path = os.path.join(out_dir, f"curves_{task}.png")
         save_figure(fig, path, build)
@@ -86,7 +87,7 @@ def write_teacher_designs(results: dict, out_dir: str, build: dict, preset: str,
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.4, 4.0), dpi=120)
     _plot_methods(ax, results, task, methods)
-    ax.set_title(f"Teacher designs on {TASK_NAMES.get(task, task)} ({grid_label(preset, student)})", fontsize=10)
+    ax.set_title(f"Teacher designs on {task_name(task)} ({grid_label(preset, student)})", fontsize=10)
     fig.tight_layout()
     short = "idp" if task == "inverted_double_pendulum" else task
     path = os.path.join(out_dir, f"teacher_designs_{short}.png")
@@ -154,14 +155,15 @@ def embed_2d(x: np.ndarray, method: str = "tsne", seed: int = 0) -> np.ndarray:
     return out
 
 
-def write_visitation(results: dict, out_dir: str, build: dict, tasks: Sequence[str] = TASKS,
+def write_visitation(results: dict, out_dir: str, build: dict, tasks: Sequence[str] | None = None,
                      embedding: str = "tsne", points_per_panel: int = 500, seed: int = 0,
                      baseline: str = BASELINE) -> list[str]:
-    """``visitation_<task>.png`` for each of ``tasks`` whose Meta (independent) and DDPG (``baseline``) cells
-    both stored ``visits.npz``: teacher / student and DDPG states, early and late, jointly embedded in 2-D,
-    with Gaussian-KDE contours (the paper's Figure 4, on InvertedDoublePendulum there)."""
+    """``visitation_<task>.png`` for each of ``tasks`` (default the grid's, ``grid.tasks``) whose Meta
+    (independent) and DDPG (``baseline``) cells both stored ``visits.npz``: teacher / student and DDPG states,
+    early and late, jointly embedded in 2-D, with Gaussian-KDE contours (the paper's Figure 4, on
+    InvertedDoublePendulum there)."""
     files = []
-    for task in tasks:
+    for task in grid.tasks() if tasks is None else tasks:
         a, b = results.get((task, META)), results.get((task, baseline))
         if a is None or b is None:
             continue
@@ -217,7 +219,7 @@ def _write_visitation_figure(task: str, visit_samples: int, pa: str, pb: str, ou
         ax.set_xlabel(f"{embedding} 1")
     for ax in axes[:, 0]:
         ax.set_ylabel(f"{embedding} 2")
-    fig.suptitle(f"State visitation on {TASK_NAMES.get(task, task)}: first vs latest "
+    fig.suptitle(f"State visitation on {task_name(task)}: first vs latest "
                  f"{visit_samples} states per seed ({embedding}, "
                  f"≤{points_per_panel} points per panel)", fontsize=10)
     fig.tight_layout()

@@ -1,4 +1,5 @@
-"""The paper's task x method grid: task and method names, each method's ``experiments.run`` options,
+"""The paper's task x method grid: its tasks (``tasks``, from their specs in envs) and method names, each
+method's ``experiments.run`` options,
 and the DDPG baseline each preset's Meta is compared against; the exploration benchmark's strategies per
 student (``STRATEGIES``).
 
@@ -12,11 +13,6 @@ import re
 
 from experiments.grid.spec import method
 
-# In the paper's Table 2 order.
-TASKS = ("inverted_double_pendulum", "inverted_pendulum", "hopper", "pendulum", "halfcheetah", "reacher")
-TASK_NAMES = {"pendulum": "Pendulum", "inverted_pendulum": "InvertedPendulum",
-              "inverted_double_pendulum": "InvertedDoublePendulum", "hopper": "Hopper",
-              "halfcheetah": "HalfCheetah", "reacher": "Reacher"}
 # The cycle of the learned-exploration variants and their controls on every task: D0 250 steps; D1 and the paired
 # rollout of pi 125 steps from the same resets in 2 envs each; 750 stored steps, a third of them D0 (as the paper
 # preset's cycle); a look-ahead of half an update per D0 step (as the paper preset on every task); 20 cycles per
@@ -107,9 +103,19 @@ STUDENT_OF = {m: student for table in (GRIDS, STRATEGIES) for student, methods i
 STUDENT_NAMES = {"ddpg": "DDPG", "td3": "TD3", "sac": "SAC"}
 
 
+def tasks() -> tuple[str, ...]:
+    """The grid's tasks: the paper's, in its Table 2 order (``envs.paper_tasks``: each task's spec)."""
+    import envs  # brax on import: only when the tasks are asked for
+
+    return envs.paper_tasks()
+
+
 def task_name(task: str) -> str:
-    """How tables name a task: the paper's name, or a ``gym:<Id>`` task's gymnasium id with its arguments."""
-    return TASK_NAMES.get(task) or (task[4:] if task.startswith("gym:") else task)
+    """How tables name a task: its spec's display name (``envs.display_name``; a ``gym:<Id>`` task's gymnasium id
+    with its arguments), or the name itself for a task this code does not know."""
+    import envs  # brax on import: only when a name is asked for
+
+    return envs.display_name(task) if task in envs.TASKS or envs.is_gym_task(task) else task
 
 
 def task_folder(task: str) -> str:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 from typing import Sequence
 
-from experiments.build.grid import METHOD_NAMES, TASK_NAMES, baseline_for, grid_label
+from experiments.build.grid import METHOD_NAMES, baseline_for, grid_label, task_name
 from experiments.build.stats import fmt_p
 from experiments.build.tables import cell_text, verdict_families
 
@@ -70,7 +70,7 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
     if absent.get("tasks") or absent.get("methods"):
         lines += ["", "Left out of the tables (the grid has no cell stored for them): "
                   + "; ".join(part for part in (
-                      ", ".join(TASK_NAMES.get(t, t) for t in absent.get("tasks", [])),
+                      ", ".join(task_name(t) for t in absent.get("tasks", [])),
                       ", ".join(METHOD_NAMES.get(m, m) for m in absent.get("methods", []))) if part) + "."]
     if manifest.get("aggregate_not_built"):
         lines += ["", f"No aggregate scores: {manifest['aggregate_not_built']}."]
@@ -86,7 +86,7 @@ def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequen
     for row in rows:
         said = "; ".join(f"{METHOD_NAMES.get(c['method'], c['method'])}: {c['verdict']} ({fmt_p(c['p_holm'])})"
                          for c in fixed if c["task"] == row["task"])
-        lines.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
+        lines.append(f"| {task_name(row['task'])} | " +
                      " | ".join(cell_text(row["methods"][m]) for m in methods) + f" | {said or 'not compared'} |")
     lines.append(footer)
     path = os.path.join(out_dir, "README.md")

@@ -16,22 +16,23 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from experiments.build.cells import RunResult, cell_provenance
-from experiments.build.grid import (BASELINE, META, METHOD_NAMES, TASK_NAMES, baseline_for, grid_label, noise_methods,
-                                    STUDENT_NAMES)
+from experiments.build.grid import (BASELINE, META, METHOD_NAMES, baseline_for, grid_label, noise_methods,
+                                    STUDENT_NAMES, task_name)
 from experiments.build.stats import (EQUIVALENCE_MARGIN, FINAL_DEFINITION, VERDICT_DEFINITION,
                                      first_step_reaching, fmt, fmt_p, judge_family, mean_std, num_final_evaluations,
                                      stats_definition, t_interval, welch_test)
 
-# The paper's Table 2 (Xu et al., 2018): final return mean ± std, Meta vs DDPG; 3 seeds, gym v1 tasks.
-PAPER_TABLE2 = {
-    "inverted_double_pendulum": {"meta": (7718.0, 277.0), "ddpg": (2795.0, 1325.0)},
-    "inverted_pendulum": {"meta": (745.0, 27.0), "ddpg": (499.0, 23.0)},
-    "hopper": {"meta": (205.0, 41.0), "ddpg": (135.0, 42.0)},
-    "pendulum": {"meta": (-123.0, 10.0), "ddpg": (-206.0, 31.0)},
-    "halfcheetah": {"meta": (2011.0, 339.0), "ddpg": (1594.0, 298.0)},
-    "reacher": {"meta": (-12.16, 1.19), "ddpg": (-11.67, 3.39)},
-}
+# The seeds of the paper's Table 2 (Xu et al., 2018), whose numbers each task's spec holds (envs.TaskSpec.table2).
 PAPER_SEEDS = 3
+
+
+def paper_table2(task: str) -> dict | None:
+    """The paper's Table 2 numbers for ``task`` (its spec's ``table2``): {'meta': (mean, std), 'ddpg': (mean, std)};
+    None for a task the paper did not run."""
+    import envs  # brax on import: only when a table is built
+
+    row = envs.TASKS[task].table2 if task in envs.TASKS else None
+    return None if row is None else {"meta": row.meta, "ddpg": row.ddpg}
 
 
 def write_md_and_json(md_path: str, md: list[str], json_path: str, preset: str, student: str, payload: dict) -> None:
@@ -49,7 +50,7 @@ def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str], bas
     """One dict per task with, per method, the statistics of the finished runs (None: not run / incomplete)."""
     rows = []
     for task in tasks:
-        row = {"task": task, "methods": {}, "paper": PAPER_TABLE2.get(task)}
+        row = {"task": task, "methods": {}, "paper": paper_table2(task)}
         for method in methods:
             r = results.get((task, method))
             if r is None:
@@ -123,7 +124,6 @@ def verdict_family(rows: list[dict], base: str, compared_methods: Sequence[str],
 def verdicts_markdown(families: list[dict]) -> list[str]:
     """The verdict tables of ``verdict_families``, one per baseline."""
     name = lambda m: METHOD_NAMES.get(m, m)
-    task_name = lambda t: TASK_NAMES.get(t, t)
     md = ["## Verdicts against each noise baseline (corrected for the number of comparisons)", "",
           f"- {VERDICT_DEFINITION}.",
           "- a − b: difference of the mean final returns, with its 95% Welch CI (t(0.975, Welch-Satterthwaite "
@@ -184,17 +184,21 @@ def budget_text(task: str, budgets: dict) -> str:
     from envs import default_budget, get_spec  # brax on import: only when a table is written
 
     text = _joined(budgets)
-    if task in PAPER_TABLE2 and budgets and min(budgets.values()) < default_budget(task):
+    if paper_table2(task) is not None and budgets and min(budgets.values()) < default_budget(task):
         text += f" (reduced; paper: {get_spec(task).paper_budget:,})"
     return text
 
 
 def engines_text(results: Iterable[RunResult]) -> str:
-    """How the stored MuJoCo cells were stepped: 'MJX', "MuJoCo's C engine" or both (pendulum is JAX), and
-    what a grid with no MuJoCo cell stored has: the JAX Pendulum only."""
-    physics = {r.config["env"].get("physics", "mjx") for r in results if r.task != "pendulum"}
+    """How the stored MuJoCo cells were stepped: 'MJX', "MuJoCo's C engine" or both (a JAX task has neither), and
+    what a grid with no MuJoCo cell stored has: the JAX tasks only."""
+    import envs  # brax on import: only when a table is written
+
+    physics = {r.config["env"].get("physics", "mjx") for r in results if envs.has_mujoco(r.task)}
     names = {"mjx": "MJX", "mujoco": "MuJoCo's C engine"}
-    return " and ".join(names[p] for p in sorted(physics)) if physics else "JAX (Pendulum only: no MuJoCo cell stored)"
+    if physics:
+        return " and ".join(names[p] for p in sorted(physics))
+    return f"JAX ({', '.join(task_name(t) for t in envs.TASKS if not envs.has_mujoco(t))} only: no MuJoCo cell stored)"
 
 
 def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str,
@@ -227,11 +231,11 @@ def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer:
         done = {m: c for m, c in row["methods"].items() if c["status"] == "done"}
         budget = budget_text(row["task"], {m: c["budget"] for m, c in done.items()})
         seeds = _joined({m: c["n"] for m, c in done.items()})
-        md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " + " | ".join(cells) +
+        md.append(f"| {task_name(row['task'])} | " + " | ".join(cells) +
                   f" | {pm} | {pd} | {budget} | {seeds} |")
     md += ["", "## 95% confidence intervals", "", "| task | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
     for row in rows:
-        md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | " +
+        md.append(f"| {task_name(row['task'])} | " +
                   " | ".join(ci_text(row["methods"][m]) for m in methods) + " |")
     md += [""] + verdicts_markdown(families)
     md.append(footer)
@@ -317,7 +321,7 @@ def write_steps_to_threshold(rows: list[dict], out_dir: str, footer: str, preset
         bstep = "n/a" if row["baseline_step"] is None else f"{row['baseline_step']:,}"
         run = f"{row['env_steps_run']:,}" + ("" if row["complete"] else " (incomplete)")
         ratio = "n/a" if row["ratio"] is None else f"{row['ratio']:.3f}"
-        md.append(f"| {TASK_NAMES.get(row['task'], row['task'])} | {METHOD_NAMES.get(row['method'], row['method'])} "
+        md.append(f"| {task_name(row['task'])} | {METHOD_NAMES.get(row['method'], row['method'])} "
                   f"| {fmt(row['threshold'])} | {step} | {bstep} | {ratio} | {run} | {row['seeds']} |")
     if not rows:
         md.append(f"| (no task has a {baseline} run) | | | | | | | |")
@@ -380,7 +384,7 @@ def write_comparisons(comparisons: dict, out_dir: str, footer: str, preset: str,
           "a above b (b above a): at how many of the evaluation steps both cells have the seed-mean curve of a "
           "is strictly above b's (b's above a's)."]
     for task in dict.fromkeys(r["task"] for r in comparisons["methods"]):
-        md += ["", f"## {TASK_NAMES.get(task, task)}", "",
+        md += ["", f"## {task_name(task)}", "",
                "| method | seeds | budget | mean final | median | min | max | best seed mean (step) | "
                "mean over evaluations |", "|---|---|---|---|---|---|---|---|---|"]
         for r in (r for r in comparisons["methods"] if r["task"] == task):

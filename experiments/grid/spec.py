@@ -86,7 +86,9 @@ class CellSpec:
     @property
     def has_engine_choice(self) -> bool:
         """Whether the task is stepped by a MuJoCo engine that ``physics`` chooses (not a JAX task)."""
-        return self.task != "pendulum"
+        import envs
+
+        return envs.has_mujoco(self.task)
 
     def budget(self) -> int:
         """Env steps per seed: ``steps``, else the task's paper budget (as ``make_config``)."""

@@ -12,6 +12,7 @@ import json
 import os
 import sys
 
+import envs
 from metapg_jax import config as config_lib
 from metapg_jax import strategy
 
@@ -20,7 +21,7 @@ from metapg_jax import strategy
 FLAGS = strategy.flags()
 # Arguments that define the run; stored in config.json so --resume can rebuild and compare it. The main job
 # trains the paper's teacher: --method defaults to meta. ``defaults()`` adds an imported plug-in's shortcut.
-RUN_ARGS = {"env": "pendulum", "method": "meta", **{flag: None for flag in FLAGS}, "preset": "paper",
+RUN_ARGS = {"env": envs.DEFAULT_TASK, "method": "meta", **{flag: None for flag in FLAGS}, "preset": "paper",
             "seeds": 8, "seed": 0, "steps": None, "source": "gymnasium", "physics": "auto",
             "student": "ddpg", "overrides": [], "plugins": []}
 
@@ -129,7 +130,7 @@ def resolved_run_args(a: dict, cfg: config_lib.Config) -> dict:
 
 
 def physics_label(cfg: config_lib.Config) -> str:
-    if cfg.env.name == "pendulum":
+    if not envs.has_mujoco(cfg.env.name):
         return "JAX"
     return "MuJoCo C" if cfg.env.physics == "mujoco" else "MJX"
 

@@ -35,7 +35,7 @@ def default_eval_every(total_steps: int, cycle: int, target: int) -> int:
     return best * cycle
 
 
-def make_config(env: str = "pendulum", method: str = "ddpg", preset: str = "paper", steps: int | None = None,
+def make_config(env: str = envs.DEFAULT_TASK, method: str = "ddpg", preset: str = "paper", steps: int | None = None,
                 source: str = "gymnasium", overrides: dict[str, Any] | None = None, physics: str = "mjx",
                 student: str = "ddpg", **flags: Any) -> Config:
     """A full config from a task, a method (explorer) and a preset (see the module docstring).

@@ -18,7 +18,7 @@ CORE_GROUPS = ("env", "run", "ddpg")
 
 @dataclasses.dataclass(frozen=True)
 class EnvConfig:
-    name: str = "pendulum"            # task, one of envs.TASKS, or gym:<Id>[(kwargs)] (any gymnasium MuJoCo env)
+    name: str = envs.DEFAULT_TASK     # task, one of envs.TASKS, or gym:<Id>[(kwargs)] (any gymnasium MuJoCo env)
     source: str = "gymnasium"         # 'gymnasium' (reference) or 'brax' (fast, simplified models)
     physics: str = "mjx"              # MuJoCo tasks' engine: 'mjx' (JAX, float32) or 'mujoco' (C, float64, host CPU)
     episode_length: int = 0           # time limit; 0 = gymnasium's for the task

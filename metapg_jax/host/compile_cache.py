@@ -4,10 +4,10 @@ A resumed run, the next call of a ``reproduce`` grid and a rerun of the same con
 compiled program instead of compiling it again (an extension too when its replay capacity does
 not change: budgets of 1M steps and more, or a set ``run.buffer_size``; below that the capacity
 grows with the budget, the shapes change and the program compiles afresh). Measured on the
-2-core CPU machine with another run beside it: Hopper's training program (Meta, 2 seeds)
-compiled in 469 s cold and in 97 s from the cache (what is left is tracing and lowering, which
-the cache does not skip); the JAX Pendulum's in 33 s and 4.9 s. The numbers the run produces are
-the same bit for bit (``tests/test_longrun.py``).
+2-core CPU machine with another run beside it (docs/long-runs.md, which names the tasks): a
+MuJoCo task's training program on MJX (Meta, 2 seeds) compiled in 469 s cold and in 97 s from
+the cache (what is left is tracing and lowering, which the cache does not skip); the JAX task's
+in 33 s and 4.9 s. The numbers the run produces are the same bit for bit (``tests/test_longrun.py``).
 
 JAX's own cache does the work; this module picks the folder, turns it on and counts what it did:
 

@@ -39,17 +39,18 @@ Deviations from the paper's Algorithm 1 (also in docs/algorithm.md):
   R_hat(pi)" without saying how; a fresh estimate costs samples).
 
 Our readings where the paper gives no number or procedure (also in docs/algorithm.md):
-* The look-ahead runs ``train_steps`` updates (50; 500 on IP/HalfCheetah), the
-  paper's "one or a small number of steps" read as the student's own count.
+* The look-ahead runs ``train_steps`` updates (50; 500 where the paper's cycle
+  for the task is longer), the paper's "one or a small number of steps" read as
+  the student's own count.
 * R_hat(pi') is one first-episode return per eval env, truncated at
-  ``eval_steps``: on the 1000-step tasks a 200-step partial return (2000 steps
-  on IP/HalfCheetah, i.e. whole episodes).
+  ``eval_steps``: on the 1000-step tasks a 200-step partial return (2000 steps,
+  i.e. whole episodes, where the paper's cycle for the task is longer).
 * The teacher's env is not reset between cycles: D0 continues its episodes.
 
 ``TeacherExplorer`` is this cycle as an explorer, registered as ``meta`` (``--method=meta``; its group is
 ``meta``, its shortcut ``--teacher``): the teacher explores, and what it does with its data is the
-look-ahead, the meta reward and the REINFORCE step. This file also holds the paper's schedule per task
-(``PAPER_SCHEDULE``) and what each preset changes for the teacher.
+look-ahead, the meta reward and the REINFORCE step. This file also reads the paper's schedule for the task (its
+spec's ``meta_schedule``, envs) and holds what each preset changes for the teacher.
 """
 
 from __future__ import annotations
@@ -61,6 +62,7 @@ from typing import Any
 import jax
 import jax.numpy as jnp
 
+import envs
 from metapg_jax import strategy
 from metapg_jax import teacher as teacher_lib
 from metapg_jax.config import positive
@@ -88,7 +90,7 @@ class MetaConfig:
     explore_steps: int = 100        # |D0| per cycle
     eval_steps: int = 200           # |D1| per cycle, per eval env
     teacher_steps: int = 1          # REINFORCE Adam steps per cycle
-    # DDPG updates of the look-ahead copy on D0; 0 = run.train_steps (50; 500 on IP/HalfCheetah).
+    # DDPG updates of the look-ahead copy on D0; 0 = run.train_steps (50; 500 in the paper's longer cycle).
     # The paper says "one or a small number of steps" without a number; ours is a reading.
     lookahead_steps: int = 0
     eval_envs: int = 1              # parallel envs for D1
@@ -99,17 +101,15 @@ class MetaConfig:
     normalize_meta_reward: bool = False  # running mean/std of the meta reward (our addition)
 
 
-# The paper's schedule per task (section 5.1): |D0|, |D1|, student updates per cycle, REINFORCE steps per
-# cycle. Tasks not named here: 100, 200, 50, 1.
-PAPER_SCHEDULE = {
-    "inverted_pendulum": dict(explore_steps=1000, eval_steps=2000, train_steps=500, teacher_steps=100),
-    "halfcheetah": dict(explore_steps=1000, eval_steps=2000, train_steps=500, teacher_steps=100),
-}
+# Algorithm 1's schedule (section 5.1, "typically"): |D0|, |D1|, student updates per cycle, REINFORCE steps per
+# cycle; a task whose spec has a ``meta_schedule`` (envs.TaskSpec: the paper's own cycle for it) runs that.
 _DEFAULT_SCHEDULE = dict(explore_steps=100, eval_steps=200, train_steps=50, teacher_steps=1)
 
 
 def paper_schedule(task: str) -> dict[str, int]:
-    return PAPER_SCHEDULE.get(task, _DEFAULT_SCHEDULE)
+    """The paper's schedule on ``task``: its spec's ``meta_schedule``, else ``_DEFAULT_SCHEDULE``."""
+    schedule = envs.get_spec(task).meta_schedule
+    return _DEFAULT_SCHEDULE if schedule is None else dataclasses.asdict(schedule)
 
 
 def make_teacher(trainer: Trainer) -> Teacher:
@@ -278,8 +278,8 @@ BASELINES = ("lookahead", "fresh", "paired")
 # (results/screen/README.md); applied after the overrides, a field that --set names is left as set.
 TUNED_META = {
     "run.train_steps": "half the cycle's stored steps (DDPG's 50 updates per 100 stored steps)",
-    "meta.lookahead_steps": "the paper preset's student updates per cycle (50; 500 on IP/HalfCheetah)",
-    "meta.teacher_steps": "1 (the paper preset: 100 on IP/HalfCheetah)",
+    "meta.lookahead_steps": "the paper preset's student updates per cycle (50; 500 in the paper's longer cycle)",
+    "meta.teacher_steps": "1 (the paper preset: 100 in the paper's longer cycle)",
 }
 
 
@@ -294,7 +294,7 @@ def _group_defaults(config) -> MetaConfig:
 
 def _schedule(config):
     """Chosen as the explorer: the task's student updates per cycle under the paper and tuned presets (a 3000-step
-    cycle has 500 on IP/HalfCheetah; the DDPG baseline keeps baselines' 50 per 100-step cycle); no random
+    cycle has 500 where the paper says so; the DDPG baseline keeps baselines' 50 per 100-step cycle); no random
     warm-up under the modern preset (the teacher is the exploration from the first step)."""
     run = config.run
     if config.preset in ("paper", "tuned"):
