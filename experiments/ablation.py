@@ -34,7 +34,7 @@ from typing import Sequence
 
 import numpy as np
 
-from experiments.build import cells, figures, stats
+from experiments.analysis import cells, figures, stats
 
 MANIFEST = "ablation.json"
 

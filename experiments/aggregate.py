@@ -6,13 +6,13 @@ the probability that each teacher improves on each noise baseline, and performan
                                                                   # results/performance_profiles.png
     python -m experiments.aggregate results/td3/table2.json --anchors results/normalisation.json
 
-The input is a grid's JSON twin (``experiments.build.tables``: per task and method the seeds' final returns); the
+The input is a grid's JSON twin (``experiments.analysis.tables``: per task and method the seeds' final returns); the
 scores are normalised with the anchors of ``experiments.normalisation`` (0 = a uniformly random policy, 1 =
 the reference). The methods are those with a finished cell on some task (the others are listed as absent);
 only the tasks on which every one of them has a finished cell enter: aggregates over different task sets
 would not be comparable (the tasks left out are listed). Each teacher (a method that does not explore with
 noise) is compared with each noise baseline; a grid without both kinds compares every ordered pair of its
-methods. The estimators, their intervals and the bootstrap's seed: ``experiments.build.stats``
+methods. The estimators, their intervals and the bootstrap's seed: ``experiments.analysis.stats``
 (``AGGREGATE_DEFINITION``).
 """
 
@@ -26,8 +26,8 @@ import sys
 
 import numpy as np
 
-from experiments.build import stats
-from experiments.build.grid import METHOD_NAMES, noise_methods, task_name
+from experiments.analysis import stats
+from experiments.grid.methods import METHOD_NAMES, noise_methods, task_name
 
 PROFILE_TAUS = np.linspace(0.0, 2.0, 81)  # the profiles' thresholds, widened where a seed scores above 2
 
@@ -50,7 +50,7 @@ def grid_scores(grid: dict, anchors: dict[str, tuple[float, float]],
     """(tasks, methods, scores, left_out): the tasks where every method has a finished cell and an anchor,
     the methods with a finished cell somewhere, {method: [normalised per-seed scores of each task]}, and the
     tasks left out with why (as the tables name tasks and methods; ``labels``: names for methods that
-    ``experiments.build.grid.METHOD_NAMES`` does not have)."""
+    ``experiments.grid.methods.METHOD_NAMES`` does not have)."""
     labels = {**METHOD_NAMES, **(labels or {})}
     methods = [m for m in grid_methods(grid)
                if any(row["methods"].get(m, {}).get("status") == "done" for row in grid["rows"])]
@@ -103,7 +103,7 @@ def _interval(e: dict) -> str:
 
 
 def markdown(rep: dict, title: str, labels: dict | None = None) -> str:
-    """aggregate.md; ``labels``: names for methods that ``experiments.build.grid.METHOD_NAMES`` does not have."""
+    """aggregate.md; ``labels``: names for methods that ``experiments.grid.methods.METHOD_NAMES`` does not have."""
     labels = {**METHOD_NAMES, **(labels or {})}
     names = lambda ms: [labels.get(m, m) for m in ms]
     lines = [f"# {title}: aggregate scores over tasks", "",
@@ -224,7 +224,7 @@ def main(argv: list[str] | None = None) -> int:
         scored = grid_scores(grid, anchors)
         rep = report(grid, anchors, scored)
     except KeyError as err:
-        print(f"error: {args.grid}: a grid's JSON twin needs the field {err} (experiments.build.tables writes them)",
+        print(f"error: {args.grid}: a grid's JSON twin needs the field {err} (experiments.analysis.tables writes them)",
               file=sys.stderr)
         return 2
     except (OSError, ValueError, TypeError) as err:

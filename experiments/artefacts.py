@@ -37,12 +37,12 @@ from that archive, and writes, under the results folder:
 Every number comes from the stored results; cells without a finished run are
 shown as "not run" (or "incomplete"), never estimated.
 
-Definitions (final return, ±, CI, p; also written into the files): ``experiments.build.stats``.
+Definitions (final return, ±, CI, p; also written into the files): ``experiments.analysis.stats``.
 
-Layout: ``experiments.build.grid`` (tasks, methods, baselines), ``experiments.build.stats`` (statistics and
-number formatting), ``experiments.build.cells`` (reading run folders, the committed archive,
-provenance), ``experiments.build.tables`` (Table 2, steps to threshold, comparisons, behaviour, README.md),
-``experiments.build.figures`` (curves, teacher designs, visitation); this module rebuilds everything
+Layout: ``experiments.grid.methods`` (tasks, methods, baselines), ``experiments.analysis.stats`` (statistics and
+number formatting), ``experiments.analysis.cells`` (reading run folders, the committed archive,
+provenance), ``experiments.analysis.tables`` (Table 2, steps to threshold, comparisons, behaviour, README.md),
+``experiments.analysis.figures`` (curves, teacher designs, visitation); this module rebuilds everything
 (``build_all``) and is the command line.
 """
 
@@ -55,8 +55,9 @@ import os
 import sys
 from typing import Sequence
 
-from experiments.build import behaviour, cells, figures, grid, readme, tables
-from experiments.build.grid import BASELINES, GRIDS, baseline_for, grid_label, methods_for
+from experiments.analysis import behaviour, cells, figures, readme, tables
+from experiments.grid import methods as grid
+from experiments.grid.methods import BASELINES, GRIDS, baseline_for, grid_label, methods_for
 
 
 def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Sequence[str] | None = None,
@@ -65,8 +66,8 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
               anchors_path: str | None = None) -> dict:
     """Rebuilds every artefact from ``<runs_dir>/<preset>/<task>/<method>``; returns the manifest.
 
-    ``tasks`` defaults to the grid's (``experiments.build.grid.tasks``), ``methods`` to ``student``'s grid
-    (``experiments.build.grid.methods_for``). Finished run folders are
+    ``tasks`` defaults to the grid's (``experiments.grid.methods.tasks``), ``methods`` to ``student``'s grid
+    (``experiments.grid.methods.methods_for``). Finished run folders are
     first copied into the committed archive ``<results>/cells/<task>/<method>`` (``cells.archive_cell``);
     cells without a finished run folder are read from there. The tables show the tasks and methods with a
     stored cell (the grid's others are listed in README.md and the manifest, not shown as "not run").
@@ -167,7 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--results-dir", default="results", help="output folder (a non-paper preset goes to <dir>/<preset>)")
     p.add_argument("--preset", default="paper", choices=tuple(BASELINES))
     p.add_argument("--student", default="ddpg", choices=tuple(GRIDS),
-                   help="whose grid the run folders hold: ddpg (default) or td3 (methods: experiments.build.grid.GRIDS)")
+                   help="whose grid the run folders hold: ddpg (default) or td3 (methods: experiments.grid.methods.GRIDS)")
     add_figure_options(p)
     return p
 

@@ -58,10 +58,10 @@ def _cold_compiles() -> None:
 
 
 def grid_strategy(name: str) -> dict:
-    """A grid method (``experiments.build.grid.METHODS``) as a measurement's explorer, student and overrides;
+    """A grid method (``experiments.grid.methods.METHODS``) as a measurement's explorer, student and overrides;
     ``label`` (the method column) is the grid method's name. The preset is the measurement's (``--presets``), also
     for a grid method with a preset of its own."""
-    from experiments.build.grid import METHODS, STUDENT_OF
+    from experiments.grid.methods import METHODS, STUDENT_OF
 
     m = METHODS[name]
     shortcuts = {"noise": "noise.kind", "teacher": "meta.teacher"}
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="comma-separated tasks (default: pendulum,inverted_double_pendulum; all tasks with --env-speed)")
     p.add_argument("--methods", default="ddpg,meta")
     p.add_argument("--strategies", default=None,
-                   help="comma-separated grid methods instead of --methods (experiments.build.grid.METHODS, e.g. "
+                   help="comma-separated grid methods instead of --methods (experiments.grid.methods.METHODS, e.g. "
                         "td3-normal,td3-pink,td3-mixed,sac-own,sac-pink): each with its student and options, "
                         "named in the method column; rows go to the 'strategies' section of --out and to "
                         "benchmarks_strategies.json")
@@ -141,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     from metapg_jax import strategy
     from metapg_jax.config import PRESETS
 
-    from experiments.build.grid import METHODS
+    from experiments.grid.methods import METHODS
 
     try:
         parse_list(args.methods, tuple(sorted(strategy.explorers())), "method")

@@ -9,8 +9,8 @@ them), archives each with its provenance and rebuilds ``results/<name>/``.
     python -m experiments.benchmark --launcher ray --ray-address auto
     python -m experiments.benchmark --artefacts-only             # rebuild results/exploration from what is stored
 
-The default plan: the paper's six tasks (``experiments.build.grid.tasks``), both students (TD3, SAC) with every one
-of their strategies (``experiments.build.grid.STRATEGIES``: TD3 with Gaussian, Ornstein-Uhlenbeck, adaptive
+The default plan: the paper's six tasks (``experiments.grid.methods.tasks``), both students (TD3, SAC) with every one
+of their strategies (``experiments.grid.methods.STRATEGIES``: TD3 with Gaussian, Ornstein-Uhlenbeck, adaptive
 parameter and colored noise, per-episode noise scales, the paper's teacher and the tuned teacher; SAC with its own
 policy, white or colored, and the paper's teacher), 10 seeds per cell from base seed 1000 (one no earlier grid in
 ``results/`` used), 300,000 env steps per seed, MuJoCo's C engine, the paper preset (the tuned teacher: its own
@@ -24,7 +24,7 @@ Every cell is an ``experiments.reproduce`` cell (``experiments.training.grid_cel
 this process or, with ``--launcher ray``, as a Ray task (reproduce's options), recorded in ``reproduce.json``
 (commit, dirty diff, command, wall and CPU time) and archived as soon as it finishes. Every cell's config is
 validated before the first one runs (bad input: one ``error:`` line, exit 2). The artefacts
-(``experiments.build.benchmark``): per task the final returns and the verdicts against the student's baseline
+(``experiments.analysis.benchmark``): per task the final returns and the verdicts against the student's baseline
 (its Gaussian noise, or the reference named by ``--baseline``, e.g. a best fixed noise chosen in advance), the
 aggregate over the tasks, sample-efficiency curves, the cost of each cell, ``README.md`` and ``manifest.json``
 (docs/reproducing.md, "The exploration benchmark").
@@ -58,9 +58,9 @@ import time
 
 import envs
 from experiments import reproduce
-from experiments.build import benchmark as artefacts
-from experiments.build import grid
-from experiments.build.grid import (LEARNED, METHODS, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, baseline_for,
+from experiments.analysis import benchmark as artefacts
+from experiments.grid import methods as grid
+from experiments.grid.methods import (LEARNED, METHODS, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, baseline_for,
                                     task_folder)
 from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
 from experiments.grid.spec import CellSpec

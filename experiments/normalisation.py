@@ -1,4 +1,4 @@
-"""The anchors of the normalised scores (``experiments.build.stats.normalise``), per task: 0 = a uniformly random
+"""The anchors of the normalised scores (``experiments.analysis.stats.normalise``), per task: 0 = a uniformly random
 policy's return, 1 = the reference return. Measured and written once; every aggregate reads them from the file.
 
     python -m experiments.normalisation                  # measures, writes results/normalisation.json
@@ -116,7 +116,7 @@ def main(argv: list[str] | None = None) -> int:
         "random_policy": {"actions": "uniform in [-1, 1]^d, a fresh draw per step", "episodes": args.episodes,
                           "seed": args.seed, "statistics": "mean and sample std (ddof=1) over episodes"},
         "reference": {"grid": os.path.relpath(REFERENCE_GRID, ROOT), "method": REFERENCE_METHOD,
-                      "statistic": "mean final return over the cell's seeds (experiments.build.stats.FINAL_DEFINITION)"},
+                      "statistic": "mean final return over the cell's seeds (experiments.analysis.stats.FINAL_DEFINITION)"},
         "measured": {"date": datetime.date.today().isoformat(), **provenance()},
         "tasks": anchors})
     print(f"wrote {args.out}")

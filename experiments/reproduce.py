@@ -28,7 +28,7 @@ and the accumulated wall time of this script's calls for that cell.
 ``--launcher ray`` runs every cell that has work left as a Ray task (``experiments.training.grid_cells.run_cells_ray``; a local Ray
 instance unless ``--ray-address`` names a cluster): the same planning and archiving in the worker, and
 a cell whose worker died is retried by Ray and resumes from its checkpoint (docs/reproducing.md).
-``--student td3`` runs the TD3 grid (``experiments.build.grid.GRIDS``) into ``runs/reproduce-td3`` and
+``--student td3`` runs the TD3 grid (``experiments.grid.methods.GRIDS``) into ``runs/reproduce-td3`` and
 ``results/td3``.
 
 Then ``experiments.artefacts.build_all`` rebuilds Table 2, the learning
@@ -48,9 +48,9 @@ import sys
 import time
 
 from experiments.artefacts import add_figure_options, build_all
-from experiments.build.cells import results_dir_for
-from experiments.build import grid
-from experiments.build.grid import BASELINES, GRIDS, baseline_for, methods_for
+from experiments.analysis.cells import results_dir_for
+from experiments.grid import methods as grid
+from experiments.grid.methods import BASELINES, GRIDS, baseline_for, methods_for
 from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
 from experiments.training import grid_cells
 
@@ -59,7 +59,7 @@ MUJOCO_RUNS, MUJOCO_RESULTS = "runs/reproduce-mujoco", "results/mujoco"
 # Where a student other than DDPG keeps its grid by default (whatever the physics): runs/reproduce-<student>
 # and results/<student>.
 # The order a full grid runs its tasks in: this study's choice (the grid's tasks are the paper's,
-# experiments.build.grid.tasks; test_reproduce checks that this lists each once).
+# experiments.grid.methods.tasks; test_reproduce checks that this lists each once).
 RUN_ORDER = ("inverted_double_pendulum", "pendulum", "inverted_pendulum", "reacher", "hopper", "halfcheetah")
 DEFAULT_SEEDS = 8
 

@@ -28,8 +28,8 @@ import sys
 
 import envs
 from experiments import ablation, reproduce
-from experiments.build import cells, stats
-from experiments.build.grid import task_name
+from experiments.analysis import cells, stats
+from experiments.grid.methods import task_name
 from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
 from experiments.grid.spec import Method
 from experiments.training import grid_cells

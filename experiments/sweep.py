@@ -329,11 +329,11 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
 
 
 def summary_rows(out: str, settings, configs) -> list[dict]:
-    """Per setting: final return (experiments.build.stats: mean of each seed's last 10% of evaluations) mean ±
+    """Per setting: final return (experiments.analysis.stats: mean of each seed's last 10% of evaluations) mean ±
     std over seeds and the 95% t interval; a setting with non-finite parameters is flagged."""
     import numpy as np
 
-    from experiments.build.stats import final_returns, mean_std, t_interval
+    from experiments.analysis.stats import final_returns, mean_std, t_interval
     from metapg_jax.host import runfiles
 
     rows = runfiles.read_jsonl(os.path.join(out, "metrics.jsonl"))
@@ -363,7 +363,7 @@ def summary_rows(out: str, settings, configs) -> list[dict]:
 
 
 def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
-    from experiments.build.stats import FINAL_DEFINITION, fmt
+    from experiments.analysis.stats import FINAL_DEFINITION, fmt
     from metapg_jax.host import runfiles
 
     rows = summary_rows(out, settings, configs)
@@ -394,7 +394,7 @@ def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
 
 
 def _plot(out: str, rows: list[dict], fields: list[str]) -> None:
-    from experiments.build.figures import pyplot
+    from experiments.analysis.figures import pyplot
 
     plt = pyplot()
     shown = [e for e in rows if "mean" in e]

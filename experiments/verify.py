@@ -5,7 +5,7 @@ checkout of the commit it started at, and compare the metrics with the stored on
     python -m experiments.verify results/td3/cells/*/td3-normal --chunks 2
 
 For a cell recorded as run from a tree with uncommitted changes and no stored diff (``dirty`` in its
-``config.json`` or ``reproduce.json``; ``experiments.build.cells.is_dirty``), this tells whether those changes
+``config.json`` or ``reproduce.json``; ``experiments.analysis.cells.is_dirty``), this tells whether those changes
 touched the training program: the compiled run is deterministic, so the clean commit gives the stored
 numbers if they did not. The cell's first recorded command (``reproduce.json``'s first call; else its
 ``run_args``) runs with ``--steps`` cut to ``--chunks`` evaluation intervals, the cell's own

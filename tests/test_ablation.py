@@ -11,7 +11,7 @@ import pytest
 from scipy import stats
 
 from experiments import ablation
-from experiments.build import cells
+from experiments.analysis import cells
 from tests.helpers import fabricate_run
 
 STEPS = np.arange(1, 21) * 1000  # 20 evaluations

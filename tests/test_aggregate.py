@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from experiments import aggregate, normalisation
-from experiments.build import stats
+from experiments.analysis import stats
 
 
 def _grid():
-    """A grid's JSON twin as experiments.build.tables writes it: three tasks, a teacher and two noise baselines; the
+    """A grid's JSON twin as experiments.analysis.tables writes it: three tasks, a teacher and two noise baselines; the
     teacher has no finished cell on the third task."""
     rng = np.random.default_rng(3)
     cell = lambda mean: {"status": "done", "per_seed": (mean + rng.normal(0, 0.2, 6)).tolist(), "mean": mean}

@@ -21,7 +21,7 @@ Results built from run folders (``runs/reproduce``) carry those folders' paths: 
 (``--runs-dir runs/archived-only``) before committing them, as this test expects.
 
 The exploration benchmark's grids (``results/exploration``, ``results/first-look`` and the learned-exploration
-screens) are checked the same way through ``experiments.build.benchmark.build``, with the plan (entries, tasks,
+screens) are checked the same way through ``experiments.analysis.benchmark.build``, with the plan (entries, tasks,
 options) their manifest recorded; build them with ``python -m experiments.benchmark ... --artefacts-only`` when
 no run folder of theirs exists, so that every cell is read from the archive.
 """
@@ -34,7 +34,7 @@ import shutil
 import pytest
 
 from experiments import artefacts
-from experiments.build import cells
+from experiments.analysis import cells
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # committed folder -> (build_all's results_dir, preset) of the build that wrote it
@@ -104,7 +104,7 @@ BENCHMARK_BUILDS = ("results/exploration", "results/first-look", "results/learne
 @pytest.mark.parametrize("folder", BENCHMARK_BUILDS, ids=["exploration", "first-look", "screen", "screen-sac",
                                                           "judgement", "lookahead-125", "lookahead-25", "lookahead-10"])
 def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
-    from experiments.build import benchmark as bench_artefacts
+    from experiments.analysis import benchmark as bench_artefacts
 
     committed = os.path.join(ROOT, folder)
     with open(os.path.join(committed, "manifest.json")) as f:

@@ -1,12 +1,13 @@
-"""experiments.build.behaviour: what the explorers stored, summarised from fabricated run folders."""
+"""experiments.analysis.behaviour: what the explorers stored, summarised from fabricated run folders."""
 
 import json
 
 import numpy as np
 import pytest
 
-from experiments.build import behaviour, cells, grid
-from experiments.build.stats import fmt
+from experiments.analysis import behaviour, cells
+from experiments.grid import methods as grid
+from experiments.analysis.stats import fmt
 from tests.helpers import fabricate_run
 
 

@@ -113,7 +113,7 @@ def test_replay_benchmark_records_rows_and_replaces_same_day_ones(tmp_path):
 def test_every_grid_method_is_a_strategy_the_benchmark_can_measure():
     """``--strategies``: each grid method's options become a valid config with the method's student."""
     from experiments.bench import grid_strategy
-    from experiments.build.grid import METHODS, STUDENT_OF
+    from experiments.grid.methods import METHODS, STUDENT_OF
     from metapg_jax.config import make_config, validate
 
     for name in METHODS:

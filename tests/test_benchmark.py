@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 from experiments import benchmark
-from experiments.build import benchmark as artefacts
-from experiments.build import grid, stats
+from experiments.analysis import benchmark as artefacts
+from experiments.analysis import stats
+from experiments.grid import methods as grid
 from experiments.training import grid_cells
 from tests.helpers import fabricate_run
 

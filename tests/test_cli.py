@@ -112,12 +112,12 @@ def test_tiny_meta_run_end_to_end(tmp_path):
     assert len(rows) == 2 * 2 and {r["seed"] for r in rows} == {0, 1}
     assert rows[-1]["env_steps"] == 600
     summary = json.loads((out / "summary.json").read_text())
-    from experiments.build import stats
+    from experiments.analysis import stats
     from metapg_jax.host import metric_rows
 
     train_s, exact = metric_rows.training_seconds(rows)
     assert exact and all(r["chunk_seconds"] > 0 for r in rows) and 0 < train_s <= summary["train_seconds"]
-    # summary.json's final return is the tables' (experiments.build.stats) on the same metrics file.
+    # summary.json's final return is the tables' (experiments.analysis.stats) on the same metrics file.
     finals = stats.final_returns(metric_rows.curves(rows)[1])
     assert summary["final_return_per_seed"] == pytest.approx(finals.tolist())
     assert (summary["final_return_mean"], summary["final_return_std"]) == pytest.approx(stats.mean_std(finals))

@@ -28,7 +28,7 @@ def test_unknown_task_lists_valid_names():
 def test_a_task_added_to_the_registry_alone_gets_its_schedule_budget_and_name_from_its_spec(monkeypatch):
     """One spec in ``envs.TASKS`` is the whole task: the config, Meta's schedule, the tables' name and the engine
     choice read it; no other module lists it."""
-    from experiments.build import grid
+    from experiments.grid import methods as grid
     from experiments.training.args import physics_label
     from metapg_jax.config import make_config, validate
 

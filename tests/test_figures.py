@@ -1,10 +1,10 @@
-"""experiments.build.figures: the state-visitation samples, embeddings and figure."""
+"""experiments.analysis.figures: the state-visitation samples, embeddings and figure."""
 
 import numpy as np
 import pytest
 
 from experiments import artefacts
-from experiments.build import figures
+from experiments.analysis import figures
 from tests.helpers import fabricate_run
 
 

@@ -5,7 +5,7 @@ import os
 
 from experiments import reproduce
 from experiments import run as run_lib
-from experiments.build.grid import METHODS, STUDENT_OF
+from experiments.grid.methods import METHODS, STUDENT_OF
 from experiments.grid.spec import CellSpec, GridRun, GridSpec, method
 from experiments.training import args as training_args
 from experiments.training import grid_cells

@@ -1,5 +1,5 @@
-"""The learned-exploration diagnostics (experiments.build.learned) on a fabricated archive, and the archive of a
-learned variant's per-cycle metrics (experiments.build.cells.archive_cell)."""
+"""The learned-exploration diagnostics (experiments.analysis.learned) on a fabricated archive, and the archive of a
+learned variant's per-cycle metrics (experiments.analysis.cells.archive_cell)."""
 
 import gzip
 import json
@@ -10,8 +10,8 @@ import shutil
 import numpy as np
 import pytest
 
-from experiments.build import cells, learned
-from experiments.build.grid import LEARNED_METHODS
+from experiments.analysis import cells, learned
+from experiments.grid.methods import LEARNED_METHODS
 
 
 def _cycles(seeds):
@@ -94,7 +94,7 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
     """The predictions of results/learned/README.md checked on a fabricated Hopper screen: the comparisons of final
     returns in one Holm family (met / refuted / inconclusive / not run), the diagnostics' thresholds, and the
     variants against every control in a family of their own."""
-    from experiments.build import stats
+    from experiments.analysis import stats
     from tests.helpers import fabricate_run
 
     rng = np.random.default_rng(3)
@@ -170,7 +170,8 @@ def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path, capsys):
     on every task meets the goal; one far above it on two tasks of three (P's interval above 0.5) but worse on the
     third does not, nor does one no different from it (never worse, P's interval around 0.5); with a cell not run
     the goal is pending and says why; the grid's plan leaves the screen's controls out of the diagnostics."""
-    from experiments.build import benchmark as artefacts, grid
+    from experiments.analysis import benchmark as artefacts
+    from experiments.grid import methods as grid
     from tests.helpers import fabricate_run
 
     rng = np.random.default_rng(5)

@@ -12,7 +12,7 @@ import pytest
 
 from experiments import reproduce
 from experiments.training import grid_cells
-from experiments.build import cells
+from experiments.analysis import cells
 from experiments.grid.spec import GridRun, GridSpec
 from tests.helpers import fabricate_run
 
@@ -31,7 +31,7 @@ def test_reproduce_rejects_bad_input(capsys):
 
 
 def test_the_run_order_lists_each_of_the_grids_tasks_once():
-    from experiments.build import grid
+    from experiments.grid import methods as grid
 
     assert sorted(reproduce.RUN_ORDER) == sorted(grid.tasks()) and len(set(reproduce.RUN_ORDER)) == len(grid.tasks())
 

@@ -9,7 +9,7 @@ import shutil
 import pytest
 
 from experiments import ablation, screen
-from experiments.build import cells
+from experiments.analysis import cells
 from experiments.run import build_parser
 from experiments.training import screen_variants
 from experiments.training.args import config_from_run_args, run_args

@@ -1,4 +1,4 @@
-"""experiments.build.stats: final returns, t intervals and Welch tests against formulas written out here; the aggregate scores over tasks (IQM, optimality gap, probability of improvement,
+"""experiments.analysis.stats: final returns, t intervals and Welch tests against formulas written out here; the aggregate scores over tasks (IQM, optimality gap, probability of improvement,
 performance profiles, stratified bootstrap intervals), Holm's correction and the equivalence test.
 
 The aggregate numbers are checked against `rliable` 1.2.0 (Agarwal et al.'s package; it needs pandas < 3, so it
@@ -21,8 +21,8 @@ import numpy as np
 import pytest
 from scipy import stats as sps
 
-from experiments.build import stats
-from experiments.build.stats import (final_returns, first_step_reaching, mean_std, num_final_evaluations, t_interval,
+from experiments.analysis import stats
+from experiments.analysis.stats import (final_returns, first_step_reaching, mean_std, num_final_evaluations, t_interval,
                                      welch_difference, welch_test)
 
 X = np.array([[0.10, 0.55, 1.20], [0.35, 0.55, 0.90], [0.80, 0.20, 1.05], [0.05, 0.70, 0.40], [0.60, 0.95, 1.30]])
@@ -163,9 +163,9 @@ def test_final_returns_use_the_last_tenth_at_least_one():
 
 
 def test_run_summary_is_the_tables_final_return_with_the_last_evaluation_apart():
-    """summary.json's numbers (experiments.build.stats.run_summary): the mean of each seed's last 10% of
+    """summary.json's numbers (experiments.analysis.stats.run_summary): the mean of each seed's last 10% of
     evaluations, mean ± sample std over seeds; the last evaluation alone under its own name."""
-    from experiments.build.stats import describe_final, run_summary
+    from experiments.analysis.stats import describe_final, run_summary
 
     values = np.arange(2 * 20, dtype=float).reshape(2, 20)  # finals 18.5 and 38.5
     s = run_summary(np.arange(1, 21) * 100, values)

@@ -1,4 +1,4 @@
-"""experiments.build.tables and experiments.artefacts on fabricated run folders: Table 2, the corrected verdicts,
+"""experiments.analysis.tables and experiments.artefacts on fabricated run folders: Table 2, the corrected verdicts,
 steps to threshold, comparisons, the README and manifest ("not run" and "incomplete" cells included)."""
 
 import csv
@@ -11,9 +11,10 @@ import pytest
 from scipy import stats
 
 from experiments import artefacts
-from experiments.build import cells, grid, tables
-from experiments.build import stats as stats_lib
-from experiments.build.stats import fmt
+from experiments.analysis import cells, tables
+from experiments.grid import methods as grid
+from experiments.analysis import stats as stats_lib
+from experiments.analysis.stats import fmt
 from tests.helpers import fabricate_run
 
 

@@ -163,7 +163,7 @@ def test_paper_schedules_per_task(task):
 @pytest.mark.parametrize("task", ["pendulum", "inverted_pendulum", "hopper", "halfcheetah"])
 def test_tuned_preset_is_the_paper_schedule_with_ddpgs_update_ratio_and_one_teacher_step(task):
     from experiments.ablation import config_diff
-    from experiments.build.grid import BASELINES
+    from experiments.grid.methods import BASELINES
     from metapg_jax.config import PRESETS, to_dict
     from metapg_jax.strategies.meta import TUNED_META
 

@@ -7,7 +7,7 @@ import subprocess
 import sys
 
 from experiments import verify
-from experiments.build import cells
+from experiments.analysis import cells
 from tests.helpers import TINY_BUFFER, TINY_RUN
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -164,7 +164,7 @@ class GridRun:
     Attributes:
       runs_dir: the run folders' root: ``<runs_dir>/<preset>/<task>/<name>``.
       results_dir: the archive's and the artefacts' root: ``<results_dir>[/<preset>]/cells/<task>/<name>``
-        (``experiments.build.cells.archive_dir_for``).
+        (``experiments.analysis.cells.archive_dir_for``).
       preset: the grid's preset, which names its folders (a method's own preset does not).
       baseline: the grid method whose visitation sample the archive keeps beside Meta's.
       quiet, no_plot, tensorboard, checkpoint_every, checkpoint_minutes: ``experiments.run``'s options of every

@@ -35,7 +35,7 @@ def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool
     from metapg_jax.host import metric_rows, runfiles
     from metapg_jax.host.policy import export_policies
 
-    from experiments.build import stats
+    from experiments.analysis import stats
 
     rows = runfiles.read_jsonl(os.path.join(out, "metrics.jsonl"))
     summary = stats.run_summary(*metric_rows.curves(rows))
@@ -51,7 +51,7 @@ def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool
         metric_rows.plot_learning_curve(rows, os.path.join(out, "learning_curve.png"), title)
         spec = cfg.explorer_spec
         if spec.cycle_panels and spec.cycle_metrics:  # (cycles.jsonl is written for cycle metrics only)
-            from experiments.build.plots import plot_cycles
+            from experiments.analysis.plots import plot_cycles
 
             plot_cycles(runfiles.read_jsonl(os.path.join(out, "cycles.jsonl")), spec.cycle_panels,
                         os.path.join(out, spec.plot_file), title)

@@ -14,8 +14,8 @@ import sys
 import time
 from typing import NamedTuple
 
-from experiments.build.cells import archive_cell, archive_dir_for, read_json
-from experiments.build.grid import METHODS, task_folder
+from experiments.analysis.cells import archive_cell, archive_dir_for, read_json
+from experiments.grid.methods import METHODS, task_folder
 from experiments.grid.spec import CellSpec, GridRun, GridSpec, Method
 from metapg_jax.host.runner import Signals, Stopped
 from metapg_jax.host.terminal import duration
@@ -197,7 +197,7 @@ def plan_cell(cell: Cell) -> dict:
             note = f" (stored budget {s['env_steps']:,} is above the requested {wanted:,}; delete it to rerun)"
         if stored_elsewhere(cell, out):
             note += f" (not this grid's run: {stored_elsewhere(cell, out)})"
-        from experiments.build import stats
+        from experiments.analysis import stats
         from metapg_jax.host import metric_rows, runfiles
 
         # From the metrics (the tables' definition), also for a cell stored before summary.json had it.

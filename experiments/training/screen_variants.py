@@ -6,7 +6,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Callable
 
-from experiments.build.grid import METHODS
+from experiments.grid.methods import METHODS
 from experiments.grid.spec import Method, method
 
 CONTROL = "paper-teacher"

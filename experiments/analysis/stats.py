@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from experiments.build.grid import BASELINE, METHOD_NAMES
+from experiments.grid.methods import BASELINE, METHOD_NAMES
 
 FINAL_DEFINITION = ("final return of a seed = mean of its last max(1, floor(T/10)) evaluations (the last 10% "
                     "of its T evaluations, at least 1); each evaluation is the mean return of `run.eval_episodes` "

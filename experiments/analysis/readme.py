@@ -5,9 +5,9 @@ from __future__ import annotations
 import os
 from typing import Sequence
 
-from experiments.build.grid import METHOD_NAMES, baseline_for, grid_label, task_name
-from experiments.build.stats import fmt_p
-from experiments.build.tables import cell_text, verdict_families
+from experiments.grid.methods import METHOD_NAMES, baseline_for, grid_label, task_name
+from experiments.analysis.stats import fmt_p
+from experiments.analysis.tables import cell_text, verdict_families
 
 
 def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequence[str], footer: str,

@@ -3,8 +3,8 @@ method's ``experiments.run`` options,
 and the DDPG baseline each preset's Meta is compared against; the exploration benchmark's strategies per
 student (``STRATEGIES``).
 
-Shared by everything that runs or reads the grid (``experiments.reproduce``, ``experiments.build.cells``,
-``experiments.build.tables``, ``experiments.build.figures``, ``experiments.artefacts``, ``experiments.benchmark``).
+Shared by everything that runs or reads the grid (``experiments.reproduce``, ``experiments.analysis.cells``,
+``experiments.analysis.tables``, ``experiments.analysis.figures``, ``experiments.artefacts``, ``experiments.benchmark``).
 """
 
 from __future__ import annotations

@@ -5,14 +5,14 @@ aggregate over the tasks (Agarwal et al., 2021), sample-efficiency curves, the c
 and ``manifest.json``.
 
 A benchmark *entry* is a student and one of its strategies (``Entry``: a grid method of
-``experiments.build.grid.STRATEGIES``). Each student's cells are a grid of their own, laid out as
+``experiments.grid.methods.STRATEGIES``). Each student's cells are a grid of their own, laid out as
 ``experiments.reproduce`` lays out a grid (``<runs>/<student>/paper/<task>/<method>``, archived in
 ``<results>/<student>/cells/<task>/<method>``), so that the same strategy (the paper's teacher) can be an entry of
-two students without their folders colliding. Everything is read from the stored cells (``experiments.build.cells``);
+two students without their folders colliding. Everything is read from the stored cells (``experiments.analysis.cells``);
 a cell without a finished run is shown as "not run" (or "incomplete"), never estimated.
 
-Statistics: the per-cell numbers and the verdicts are ``experiments.build.tables``' (``table2_rows``,
-``verdict_family``) and ``experiments.build.stats``' (``judge_family``: Welch tests Holm-corrected within a family,
+Statistics: the per-cell numbers and the verdicts are ``experiments.analysis.tables``' (``table2_rows``,
+``verdict_family``) and ``experiments.analysis.stats``' (``judge_family``: Welch tests Holm-corrected within a family,
 'equivalent' only by the TOST of the declared margin); the aggregate is ``experiments.aggregate``'s (IQM, mean,
 optimality gap, probability of improvement, performance profiles; stratified bootstrap intervals).
 """
@@ -27,8 +27,8 @@ from typing import Sequence
 
 import numpy as np
 
-from experiments.build import cells, stats, tables
-from experiments.build.grid import (LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, noise_methods,
+from experiments.analysis import cells, stats, tables
+from experiments.grid.methods import (LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, noise_methods,
                                     task_folder, task_name)
 
 # The preset of every student's grid (a grid method with a preset of its own, the tuned teacher, keeps it).
@@ -305,7 +305,7 @@ def aggregate_report(rows: dict[str, list[dict]], entries: Sequence[Entry], task
 
 def plot_aggregate(rep: dict, entries: Sequence[Entry], path: str, build: dict) -> None:
     """IQM, mean and optimality gap per entry with their 95% stratified bootstrap intervals, grouped by student."""
-    from experiments.build.figures import pyplot, save_figure
+    from experiments.analysis.figures import pyplot, save_figure
 
     plt = pyplot()
     shown = [e for e in entries if e.key in rep["methods"]]
@@ -364,7 +364,7 @@ def sample_efficiency(results: dict, entries: Sequence[Entry], tasks: Sequence[s
 
 def plot_sample_efficiency(curves: dict, path: str, build: dict) -> None:
     """One panel per student: each entry's IQM curve with its bootstrap band."""
-    from experiments.build.figures import pyplot, save_figure
+    from experiments.analysis.figures import pyplot, save_figure
 
     plt = pyplot()
     students = list(dict.fromkeys(c["student"] for c in curves["entries"].values()))
@@ -548,7 +548,7 @@ KEPT_FILES = {
                 "or fewer than one call",
     "packages.txt": "the Python environment the cells ran with (`pip freeze`)",
     "diagnostics.md": "the learned explorers' per-cycle diagnostics and the hypotheses' predictions (and with "
-                      "`--goal` the judgement's goal), written by `python -m experiments.build.learned`",
+                      "`--goal` the judgement's goal), written by `python -m experiments.analysis.learned`",
     "diagnostics.json": "the same, machine-readable",
     "meta_reward.png": "the meta reward per cycle of every learned explorer's cell, drawn by the same command",
 }

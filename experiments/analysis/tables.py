@@ -1,8 +1,8 @@
-"""The tables of the artefacts, from stored cells (``experiments.build.cells``): the paper's Table 2
+"""The tables of the artefacts, from stored cells (``experiments.analysis.cells``): the paper's Table 2
 (``table2.md`` / ``.json`` / ``_per_seed.csv``), samples to reach the DDPG baseline's best
 (``steps_to_threshold.csv`` / ``.md``) and every method against every other (``comparisons.md`` / ``.json``);
 the paper's Table 2 numbers they are shown next to. What the explorers put in the buffer is
-``experiments.build.behaviour``'s, the folder's ``README.md`` ``experiments.build.readme``'s.
+``experiments.analysis.behaviour``'s, the folder's ``README.md`` ``experiments.analysis.readme``'s.
 """
 
 from __future__ import annotations
@@ -15,10 +15,10 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from experiments.build.cells import RunResult, cell_provenance
-from experiments.build.grid import (BASELINE, META, METHOD_NAMES, baseline_for, grid_label, noise_methods,
+from experiments.analysis.cells import RunResult, cell_provenance
+from experiments.grid.methods import (BASELINE, META, METHOD_NAMES, baseline_for, grid_label, noise_methods,
                                     STUDENT_NAMES, task_name)
-from experiments.build.stats import (EQUIVALENCE_MARGIN, FINAL_DEFINITION, VERDICT_DEFINITION,
+from experiments.analysis.stats import (EQUIVALENCE_MARGIN, FINAL_DEFINITION, VERDICT_DEFINITION,
                                      first_step_reaching, fmt, fmt_p, judge_family, mean_std, num_final_evaluations,
                                      stats_definition, t_interval, welch_test)
 
@@ -86,7 +86,7 @@ def table2_rows(results: dict, tasks: Sequence[str], methods: Sequence[str], bas
 def verdict_families(rows: list[dict], methods: Sequence[str], baseline: str,
                      anchors: dict[str, tuple[float, float]] | None = None) -> list[dict]:
     """The grid's corrected verdicts (``stats.judge_family``), one family per noise baseline: the grid's own
-    ``baseline`` first (fixed in advance by the grid, ``experiments.build.grid.baseline_for``), then every other noise
+    ``baseline`` first (fixed in advance by the grid, ``experiments.grid.methods.baseline_for``), then every other noise
     baseline of ``methods``, so that no baseline is picked on the seeds it is judged on. A family holds every
     teacher (a method that does not explore with noise; every other method in a grid without one) against
     that baseline on every task where both cells finished at the same budget (cells of different budgets are

@@ -15,9 +15,9 @@ from typing import Iterable
 
 import numpy as np
 
-from experiments.build import grid
-from experiments.build.grid import BASELINE, LEARNED_METHODS, META, METHODS, task_folder
-from experiments.build.stats import final_returns
+from experiments.grid import methods as grid
+from experiments.grid.methods import BASELINE, LEARNED_METHODS, META, METHODS, task_folder
+from experiments.analysis.stats import final_returns
 from metapg_jax.host import metric_rows, provenance, runfiles
 
 # ---------------------------------------------------------------------------------------------- loading
@@ -128,7 +128,7 @@ DIFF_PATTERN = "uncommitted-*.diff"
 # this many states per seed and array (evenly spaced; the figure draws <= 500 points per panel).
 ARCHIVE_VISITS_PER_SEED = 250
 # cycles.jsonl (a teacher's per-cycle metrics) is kept, gzipped, for the learned-exploration variants and controls
-# (grid.LEARNED_METHODS): their diagnostics (experiments.build.learned) read it per cycle.
+# (grid.LEARNED_METHODS): their diagnostics (experiments.analysis.learned) read it per cycle.
 ARCHIVE_CYCLES = "cycles.jsonl.gz"
 
 

@@ -1,8 +1,8 @@
 """Diagnostics of the learned-exploration variants and controls (results/learned/README.md): what each hypothesis
 predicts, measured from the archived per-cycle metrics (``cells.ARCHIVE_CYCLES``) of a benchmark's finished cells.
 
-    python -m experiments.build.learned --results-dir results/learned/screen --tasks hopper,halfcheetah
-    python -m experiments.build.learned --results-dir results/learned/judgement --students td3,sac --goal
+    python -m experiments.analysis.learned --results-dir results/learned/screen --tasks hopper,halfcheetah
+    python -m experiments.analysis.learned --results-dir results/learned/judgement --students td3,sac --goal
 
 Per (student, task, method) of ``grid.LEARNED_METHODS`` with a finished archived cell, over each seed's last
 ``LAST`` cycles (all of them if it has fewer), pooled over seeds unless said otherwise:
@@ -65,9 +65,9 @@ from collections import Counter
 
 import numpy as np
 
-from experiments.build import stats
-from experiments.build.cells import ARCHIVE_CYCLES, build_info, load_run, read_json
-from experiments.build.grid import LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_NAMES, task_folder, task_name
+from experiments.analysis import stats
+from experiments.analysis.cells import ARCHIVE_CYCLES, build_info, load_run, read_json
+from experiments.grid.methods import LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_NAMES, task_folder, task_name
 
 LAST = 100  # cycles per seed at the end of training that the diagnostics read
 VARIANTS = ("learned-paired", "learned-residual", "learned-bandit")
@@ -330,7 +330,7 @@ FIGURE = "meta_reward.png"
 def meta_reward_figure(results_dir: str, cells: list[dict], path: str) -> bool:
     """``plots.plot_meta_rewards`` of the finished cells of a ``build`` report (one panel per student and task);
     False (nothing written) when no cell is finished."""
-    from experiments.build import plots
+    from experiments.analysis import plots
 
     panels: dict[tuple[str, str], dict[str, list[dict]]] = {}
     for c in cells:
@@ -470,7 +470,7 @@ def markdown(report: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m experiments.build.learned", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m experiments.analysis.learned", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--results-dir", default="results/learned/screen", help="a benchmark's results folder")
     p.add_argument("--tasks", default=None,

@@ -1,4 +1,4 @@
-"""The figures of the artefacts, from stored cells (``experiments.build.cells``): learning curves per task
+"""The figures of the artefacts, from stored cells (``experiments.analysis.cells``): learning curves per task
 (``curves_<task>.png``, Figure 3), teacher designs (``teacher_designs_idp.png``, Figure 2) and state
 visitation jointly embedded in 2-D (``visitation_<task>.png``, Figure 4; t-SNE or PCA); and the
 matplotlib helpers other reports use (``pyplot``, ``save_figure``).
@@ -11,8 +11,8 @@ from typing import Sequence
 
 import numpy as np
 
-from experiments.build import grid
-from experiments.build.grid import BASELINE, META, METHOD_NAMES, baseline_for, grid_label, task_name
+from experiments.grid import methods as grid
+from experiments.grid.methods import BASELINE, META, METHOD_NAMES, baseline_for, grid_label, task_name
 
 # Line colour of each grid method in every figure.
 METHOD_COLORS = {"meta-independent": "tab:red", "meta-variance": "tab:orange",
