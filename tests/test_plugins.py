@@ -34,7 +34,7 @@ PLUGIN = textwrap.dedent('''
 
 
     @dataclasses.dataclass(frozen=True)
-    class UniformExplorer:
+    class UniformExplorer(strategy.Explorer):
         cfg: UniformConfig
 
         def init(self, trainer, student, key):
@@ -72,13 +72,9 @@ PLUGIN = textwrap.dedent('''
         def actor(self):
             return self.inner.actor
 
-        @property
-        def critic(self):
-            return self.inner.critic
-
 
     @dataclasses.dataclass(frozen=True)
-    class CountingDDPG:
+    class CountingDDPG(strategy.Student):
         ddpg: DDPG
         obs_size: int
         action_size: int
@@ -99,6 +95,9 @@ PLUGIN = textwrap.dedent('''
             inner, metrics = self.ddpg.update(state.inner, normalizer, batch)
             count = state.count + 1
             return CountingState(inner, count), {**metrics, "own_updates": count.astype(jnp.float32)}
+
+        def guarded_params(self, state):  # the NaN guard's (default: the actor alone)
+            return self.ddpg.guarded_params(state.inner)
 
 
     strategy.register_student("counting", lambda config, obs, act: CountingDDPG(DDPG(config.ddpg, obs, act), obs, act))

@@ -4,6 +4,7 @@ strategy named outside its own file (the import graph: tests/test_imports.py).""
 import ast
 import dataclasses
 import os
+import types
 
 import jax
 import numpy as np
@@ -39,6 +40,53 @@ def test_an_unknown_method_or_student_is_refused_naming_the_registered_ones():
     with pytest.raises(ValueError, match=r"unknown student 'nope'; valid students: ddpg, sac, td3$"):
         config_lib.make_config("pendulum", student="nope")
 
+
+class _Plain(strategy.ActingExplorer):
+    """An explorer with the required hooks alone: uniformly random actions."""
+
+    def init(self, trainer, student, key):
+        return ()
+
+    def act(self, trainer, carry, student, normalizer, obs, key):
+        return trainer.random_action(key), carry
+
+
+class _Starting(_Plain):
+    def episode_start(self, trainer, carry, student, key):
+        return carry
+
+
+def test_the_loop_asks_no_hook_whether_it_is_there():
+    with open(os.path.join(ROOT, "metapg_jax", "loop.py")) as f:
+        source = f.read()
+    assert "hasattr(" not in source and "getattr(" not in source
+
+
+def test_a_plain_explorer_inherits_hooks_that_do_nothing_and_the_loop_leaves_their_work_out():
+    explorer, carry = _Plain(), {"x": np.zeros(2)}
+    assert explorer.episode_start(None, carry, None, None) is carry
+    assert explorer.adapt(None, carry, None, None, None, None) is carry
+    assert explorer.adapt_every == 0 and explorer.metrics(carry) == {} and explorer.guarded_params(carry) == ()
+    trainer = types.SimpleNamespace(acting_cycle=lambda state: ("the loop's", state))
+    assert explorer.cycle(trainer, "state") == ("the loop's", "state")  # an acting explorer's cycle is the loop's
+
+    def conds(explorer):
+        trainer = make_train(tiny_config("ddpg"), explorer=explorer)
+        state = jax.eval_shape(vmap_seeds(trainer.init), seed_keys(0, 2))
+        return str(jax.make_jaxpr(vmap_seeds(trainer.train_chunk))(state)).count("cond[")
+
+    # The default episode start is not traced at all; one of the explorer's own is, under a conditional.
+    assert conds(_Starting()) > conds(_Plain())
+
+
+def test_a_student_guards_its_actor_by_default():
+    class Minimal(strategy.Student):
+        pass
+
+    state = type("State", (), {"actor": {"w": np.ones(2)}, "critic": {"w": np.ones(2)}})()
+    assert Minimal().guarded_params(state) is state.actor
+    with pytest.raises(NotImplementedError, match="Minimal is deterministic: it has no sample_action"):
+        Minimal().sample_action(None, None, None)
 
 @dataclasses.dataclass(frozen=True)
 class _Knobs:

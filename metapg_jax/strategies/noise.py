@@ -121,7 +121,7 @@ def adapt(config, state: NoiseState, actor_apply: Callable, actor_params: Params
 
 
 @dataclasses.dataclass(frozen=True)
-class NoiseExplorer:
+class NoiseExplorer(strategy.ActingExplorer):
     """The DDPG baselines' exploration: the student's actor plus noise (``config.noise``). It only acts
     (``metapg_jax.strategy.ActingExplorer``): the loop's cycle is ``rollout_steps`` noisy-actor steps, stored,
     then ``train_steps`` updates, with the stddev adaptation before every ``adapt_every`` of them for adaptive

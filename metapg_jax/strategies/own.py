@@ -25,7 +25,7 @@ from metapg_jax.loop import Trainer
 
 
 @dataclasses.dataclass(frozen=True)
-class OwnPolicyExplorer:
+class OwnPolicyExplorer(strategy.ActingExplorer):
     """The student's stochastic policy with the noise kind's ``z`` as its sampling noise (module docstring); an
     ``ActingExplorer`` whose carry is the kind's process state (a colored sequence, ...)."""
 
