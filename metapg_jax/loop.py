@@ -22,7 +22,8 @@ and calls it once per evaluation interval.
 
 The student and explorer interfaces (what the loop and the explorers use) are the base classes of
 ``metapg_jax.strategy``, which give every optional hook a default: the loop calls the hooks without asking
-whether they are there.
+whether they are there, and a ``Trainer`` refuses a student or explorer that breaks the contract when it is
+built (``strategy.check_student``, ``check_explorer``).
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ from metapg_jax.config import Config
 from metapg_jax.evaluate import evaluate
 from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.seeds import per_seed_cond, vmap_seeds
-from metapg_jax.strategy import ActingExplorer, Explorer, Student
+from metapg_jax.strategy import ActingExplorer, Explorer, Student, check_explorer, check_student
 from metapg_jax.types import Transition
 
 
@@ -91,6 +92,10 @@ class Trainer:
     env: Env
     student: Student     # the learner
     explorer: Explorer   # an ActingExplorer (init, act, ...) or an Explorer (init, cycle)
+
+    def __post_init__(self):
+        check_student(self.student)
+        check_explorer(self.explorer)
 
     # ------------------------------------------------------------------ init
     def init(self, key: jax.Array) -> TrainState:

@@ -170,3 +170,11 @@ def test_bad_plugins_and_unknown_names_are_refused_before_compiling(tmp_path, ca
     err = capsys.readouterr().err
     assert "unknown student 'redq'; valid students: counting, ddpg, sac, td3" in err
     assert not os.path.exists(tmp_path / "d")
+    misspelt = tmp_path / "misspelt.py"  # an explorer whose metrics hook is misspelt
+    misspelt.write_text(PLUGIN.replace("class UniformExplorer(strategy.Explorer):",
+                                       "class UniformExplorer(strategy.Explorer):\n    def metric(self, carry):\n"
+                                       "        return {}\n"))
+    assert run.main([*TINY, "--plugin", str(misspelt), "--method=uniform", "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert "explorer UniformExplorer: 'metric' is not a hook of strategy.Explorer (did you mean 'metrics'?)" in err
+    assert len(err.strip().splitlines()) == 1 and not os.path.exists(tmp_path / "e")

@@ -4,6 +4,7 @@ strategy named outside its own file (the import graph: tests/test_imports.py).""
 import ast
 import dataclasses
 import os
+import re
 import types
 
 import jax
@@ -87,6 +88,79 @@ def test_a_student_guards_its_actor_by_default():
     assert Minimal().guarded_params(state) is state.actor
     with pytest.raises(NotImplementedError, match="Minimal is deterministic: it has no sample_action"):
         Minimal().sample_action(None, None, None)
+
+
+class _OwnCycle(strategy.Explorer):
+    def init(self, trainer, student, key):
+        return ()
+
+    def cycle(self, trainer, state):
+        return state, {}
+
+
+class _Unrelated:
+    """The hooks of an acting explorer, without its base."""
+
+    def init(self, trainer, student, key):
+        return ()
+
+    def act(self, trainer, carry, student, normalizer, obs, key):
+        return trainer.random_action(key), carry
+
+
+def _mine(base: type, **hooks) -> type:
+    return type("Mine", (base,), hooks)
+
+
+_ANY = lambda self, *args: None
+
+
+@pytest.mark.parametrize("hooks, error", [
+    ({"episode_starts": _ANY},
+     "'episode_starts' is not a hook of strategy.ActingExplorer (did you mean 'episode_start'?)"),
+    ({"metric": _ANY}, "'metric' is not a hook of strategy.ActingExplorer (did you mean 'metrics'?)"),
+    ({"adapt_evry": 5}, "'adapt_evry' is not a hook of strategy.ActingExplorer (did you mean 'adapt_every'?)"),
+])
+def test_a_misspelt_hook_is_refused_when_registered_or_built_naming_the_closest(hooks, error, monkeypatch):
+    isolated_registry(monkeypatch)
+    mine, error = _mine(_Plain, **hooks), f"^explorer Mine: {re.escape(error)}$"
+    with pytest.raises(ValueError, match=error):
+        strategy.register_explorer("mine", mine)  # a class as ``make``: checked at registration
+    strategy.register_explorer("mine", lambda config: mine())
+    with pytest.raises(ValueError, match=error):
+        make_train(tiny_config("mine"))  # any other ``make``: when the trainer is built
+    with pytest.raises(ValueError, match=error):
+        make_train(tiny_config("ddpg"), explorer=mine())  # an object passed as is
+    strategy.check_explorer(_mine(_Plain, _episode_starts=_ANY, actor=_ANY))  # private and distant names pass
+
+
+def test_a_strategy_outside_the_contract_is_refused_before_compiling():
+    cfg = tiny_config("ddpg")
+    refused = [
+        (_Unrelated(), "explorer _Unrelated derives from neither strategy.ActingExplorer (it chooses actions) nor "
+                       "strategy.Explorer (a cycle of its own)"),
+        (_mine(strategy.ActingExplorer, init=_ANY)(),
+         "explorer Mine lacks act (required of a strategy.ActingExplorer)"),
+        (_mine(strategy.Explorer, init=_ANY)(), "explorer Mine lacks cycle (required of a strategy.Explorer)"),
+        (_mine(_Plain, cycle=_ANY)(), "explorer Mine defines cycle: an ActingExplorer's cycle is the loop's, an "
+                                      "explorer with a cycle of its own derives from strategy.Explorer"),
+        (_mine(_OwnCycle, metrics=_ANY)(), "explorer Mine defines metrics, a hook of strategy.ActingExplorer that "
+                                           "nothing runs for a strategy.Explorer (a cycle of its own)"),
+    ]
+    for explorer, error in refused:
+        with pytest.raises(ValueError, match=f"^{re.escape(error)}$"):
+            make_train(cfg, explorer=explorer)
+    ddpg = make_train(cfg).student
+    refused = [
+        (_Unrelated(), "student _Unrelated does not derive from strategy.Student"),
+        (_mine(strategy.Student, init=_ANY)(), "student Mine lacks obs_size, action_size, normalize, actor_apply, "
+                                               "deterministic_policy, update (required of a strategy.Student)"),
+        (_mine(type(ddpg), normalise=_ANY)(ddpg.cfg, ddpg.obs_size, ddpg.action_size),
+         "student Mine: 'normalise' is not a hook of strategy.Student (did you mean 'normalize'?)"),
+    ]
+    for student, error in refused:
+        with pytest.raises(ValueError, match=f"^{re.escape(error)}$"):
+            make_train(cfg, student=student)
 
 @dataclasses.dataclass(frozen=True)
 class _Knobs:
