@@ -12,8 +12,18 @@ Built in here: ``normal`` (z ~ N(0, I), scale ``noise.stddev``), ``ou`` (Ornstei
 x <- x + theta (0 - x) dt + sigma sqrt(dt) N(0, I), reset to 0 at every episode start, as the 2018
 OpenAI baselines) and ``none`` (no noise). Each further kind is one file of ``metapg_jax.strategies`` that
 calls :func:`register_kind` (colored noise: ``pink.py``; per-episode scales: ``mixed.py``), or a plug-in's.
-Adaptive parameter noise perturbs the actor's parameters, not its actions: it is part of the ``ddpg``
-explorer, not a kind here.
+
+Adaptive parameter noise (``--noise=adaptive-param``, :data:`PARAMETER_NOISE`; Plappert et al., 2018) is a
+value of ``noise.kind`` but not a kind: the ``ddpg`` explorer has it built in (``metapg_jax.strategies.noise``),
+for the reasons given here (and nowhere else). A kind's ``sample`` sees its own state and a key, not the
+observation or the student, so that both explorers can use its ``z``: added to mu(s), or as a stochastic
+policy's sampling noise. Adaptive parameter noise acts with a perturbed copy of the actor, mu~(s): neither mu(s)
+plus a ``z`` nor a policy's sampling noise. It draws that copy from the student's actor parameters at every
+episode start, and it adapts its stddev on replay minibatches between blocks of the student's updates
+(``ActingExplorer.adapt``, every ``adapt_every`` updates). As a kind, it would need ``NoiseKind`` to take the
+actor's parameters and function, the observation and replay minibatches, the acting explorer's hooks
+(``metapg_jax.strategy.ActingExplorer``), passed through every kind and both explorers for one kind that
+``--method=own`` could not use.
 """
 
 from __future__ import annotations
@@ -55,6 +65,7 @@ class NoiseKind:
 
 
 _KINDS: dict[str, NoiseKind] = {}
+PARAMETER_NOISE = "adaptive-param"   # a value of noise.kind that is not a kind (module docstring)
 
 
 def register_kind(kind: NoiseKind) -> NoiseKind:

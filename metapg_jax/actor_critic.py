@@ -13,15 +13,17 @@ import jax.numpy as jnp
 import optax
 
 from metapg_jax import normalizer as norm_lib
+from metapg_jax import strategy
 from metapg_jax.config import DDPGConfig
 from metapg_jax.networks import Actor, Critic, is_hidden_kernel_path
 from metapg_jax.types import Params, Transition
 
 
 @dataclasses.dataclass(frozen=True)
-class ActorCritic:
-    """What every built-in student shares (DDPG, TD3): the actor and critic networks and
-    optimisers of the ``ddpg`` config group, observation normalisation and acting. Pure and jittable."""
+class ActorCritic(strategy.Student):
+    """What every built-in student shares (DDPG, TD3, SAC): the actor and critic networks and
+    optimisers of the ``ddpg`` config group, observation normalisation and acting. Pure and jittable; a
+    subclass writes ``init`` and ``update``, with ``.actor`` and ``.critic`` in its state."""
 
     cfg: DDPGConfig
     obs_size: int
@@ -53,6 +55,10 @@ class ActorCritic:
     def deterministic_policy(self, actor: Params, normalizer) -> Callable[[jax.Array], jax.Array]:
         """mu(s) on raw observations: what evaluation and the look-ahead rollout D1 use."""
         return lambda obs: self.actor_apply(actor, self.normalize(normalizer, obs))
+
+    def guarded_params(self, state) -> tuple[Params, Params]:
+        """The NaN guard checks the actor and the critic."""
+        return state.actor, state.critic
 
     def init_actor_and_twin_critics(self, key: jax.Array) -> tuple[Params, Params, jax.Array]:
         """TD3's and SAC's initial parameters: (the actor, the twin critics ``{"q1", "q2"}``, the key left for the

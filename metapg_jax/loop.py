@@ -14,14 +14,16 @@ and the building blocks an explorer's cycle is made of: ``store`` (buffer, norma
 blocks of updates), ``random_action``, ``evaluate``. A *cycle* is the loop's ``acting_cycle`` for an
 explorer that only chooses actions (the baselines' noise: ``steps_per_cycle`` steps, stored, then
 ``train_steps`` updates), or the explorer's own (one meta-iteration of Algorithm 1). This module imports no
-strategy: ``metapg_jax.train.make_train`` puts the pieces together.
+strategy, only their contract (``metapg_jax.strategy``): ``metapg_jax.train.make_train`` puts the pieces together.
 
 Both paths give the same numbers for the same key. Seeds are a vmap over keys of these functions
 (``metapg_jax.seeds.vmap_seeds``); the host (``experiments.run``) jits the vmapped ``train_chunk`` once
 and calls it once per evaluation interval.
 
-The student and explorer interfaces (what the loop and the explorers use) are documented in
-``metapg_jax.strategy``.
+The student and explorer interfaces (what the loop and the explorers use) are the base classes of
+``metapg_jax.strategy``, which give every optional hook a default: the loop calls the hooks without asking
+whether they are there, and a ``Trainer`` refuses a student or explorer that breaks the contract when it is
+built (``strategy.check_student``, ``check_explorer``).
 """
 
 from __future__ import annotations
@@ -41,12 +43,13 @@ from metapg_jax.config import Config
 from metapg_jax.evaluate import evaluate
 from metapg_jax.rollout import completed_episode_mean, rollout
 from metapg_jax.seeds import per_seed_cond, vmap_seeds
+from metapg_jax.strategy import ActingExplorer, Explorer, Student, check_explorer, check_student
 from metapg_jax.types import Transition
 
 
 @struct.dataclass
 class TrainState:
-    student: Any                     # the student's state (strategy.Student: .actor, and .critic if it has one)
+    student: Any                     # the student's state (strategy.Student: .actor, ...)
     normalizer: norm_lib.NormalizerState
     buffer: replay.ReplayState
     env_state: State                 # the exploring env (episodes continue across cycles)
@@ -58,16 +61,14 @@ class TrainState:
     cycles: jax.Array                # int32
 
 
-def all_finite(state: TrainState) -> jax.Array:
-    """NaN/inf guard, computed inside the program: are the student's (and teacher's) parameters finite?
+def all_finite(params: Any) -> jax.Array:
+    """NaN/inf guard, computed inside the program: is every leaf of ``params`` finite? (``Trainer.cycle`` asks it of
+    what the student and the explorer guard: ``guarded_params`` of ``metapg_jax.strategy``.)
 
     Returned per cycle in the metrics, so the host learns of a bad seed at the
     next chunk boundary without any host sync inside the chunk.
     """
-    trees = [state.student.actor, getattr(state.student, "critic", ())]
-    if hasattr(state.explorer, "params"):
-        trees.append(state.explorer.params)
-    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(trees)]))
+    return jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in jax.tree.leaves(params)]))
 
 
 def flatten_time(tree):
@@ -89,8 +90,12 @@ def train_updates(learner, student: Any, normalizer, sample, key: jax.Array, num
 class Trainer:
     config: Config
     env: Env
-    student: Any    # the learner: a metapg_jax.strategy.Student
-    explorer: Any   # a metapg_jax.strategy.ActingExplorer (init, act, ...) or Explorer (init, cycle)
+    student: Student     # the learner
+    explorer: Explorer   # an ActingExplorer (init, act, ...) or an Explorer (init, cycle)
+
+    def __post_init__(self):
+        check_student(self.student)
+        check_explorer(self.explorer)
 
     # ------------------------------------------------------------------ init
     def init(self, key: jax.Array) -> TrainState:
@@ -182,39 +187,37 @@ class Trainer:
         key, k_roll, k_train = jax.random.split(state.key, 3)
         warm = state.env_steps < run.warmup_steps
         student, normalizer = state.student, state.normalizer
-        start = getattr(explorer, "episode_start", None)
+        starts = type(explorer).episode_start is not ActingExplorer.episode_start  # not the default no-op
 
         def policy(carry, obs, first, k):
             k_reset, k_act, k_rand = jax.random.split(k, 3)
-            if start is not None:
+            if starts:
                 # Episode starts are rare: the hook runs only on steps where some seed starts one
                 # (per_seed_cond), and its result is kept only for those seeds.
-                carry = per_seed_cond(first, lambda c: start(self, c, student, k_reset), lambda c: c, carry)
+                carry = per_seed_cond(first, lambda c: explorer.episode_start(self, c, student, k_reset),
+                                      lambda c: c, carry)
             action, carry = explorer.act(self, carry, student, normalizer, obs, k_act)
             return jnp.where(warm, self.random_action(k_rand), action), carry, None
 
         env_state, carry, transitions, stats, _ = rollout(self.env, policy, state.env_state, state.explorer, k_roll,
                                                           self.config.steps_per_cycle)
         state = self.store(state.replace(env_state=env_state, explorer=carry, key=key), transitions)
-        every = getattr(explorer, "adapt_every", 0)
-        if every:
+        if explorer.adapt_every:
             stored = state.normalizer
             between = lambda e, s, batch, k: explorer.adapt(self, e, s, stored, batch, k)
-            state, train_metrics = self.student_updates(state, k_train, run.train_steps, between, every)
+            state, train_metrics = self.student_updates(state, k_train, run.train_steps, between, explorer.adapt_every)
         else:
             state, train_metrics = self.student_updates(state, k_train, run.train_steps)
         ret_mean, n_eps = completed_episode_mean(stats)
-        own = explorer.metrics(state.explorer) if hasattr(explorer, "metrics") else {}
-        return state, {**train_metrics, "train_return": ret_mean, "train_episodes": n_eps, **own}
+        return state, {**train_metrics, "train_return": ret_mean, "train_episodes": n_eps,
+                       **explorer.metrics(state.explorer)}
 
     def cycle(self, state: TrainState) -> tuple[TrainState, dict]:
-        """One cycle of the explorer (its own ``cycle``, or ``acting_cycle`` for one that only acts) and the NaN
-        guard."""
-        if hasattr(self.explorer, "cycle"):
-            state, metrics = self.explorer.cycle(self, state)
-        else:
-            state, metrics = self.acting_cycle(state)
-        metrics["finite"] = all_finite(state)
+        """One cycle of the explorer (its own ``cycle``; an ``ActingExplorer``'s is ``acting_cycle``) and the NaN
+        guard on the parameters the student and the explorer guard."""
+        state, metrics = self.explorer.cycle(self, state)
+        metrics["finite"] = all_finite([self.student.guarded_params(state.student),
+                                        self.explorer.guarded_params(state.explorer)])
         return state.replace(cycles=state.cycles + 1), metrics
 
     # ------------------------------------------------------------------ chunks

@@ -11,13 +11,12 @@ import numpy as np
 import pytest
 
 from metapg_jax import config as config_lib
+from metapg_jax import strategy
 from metapg_jax.config import make_config
 
 
 def isolated_registry(monkeypatch) -> None:
     """Registrations a test makes (``metapg_jax.strategy.register_*``) are gone after it."""
-    from metapg_jax import strategy
-
     strategy.load_builtins()
     monkeypatch.setattr(strategy, "_STUDENTS", dict(strategy._STUDENTS))
     monkeypatch.setattr(strategy, "_EXPLORERS", dict(strategy._EXPLORERS))
@@ -108,7 +107,7 @@ def fabricate_run(path, task, method, values, steps, complete=True, visit_obs=No
         np.savez(os.path.join(path, "visits.npz"), **arrays)
 
 
-class UniformExplorer:
+class UniformExplorer(strategy.Explorer):
     """Uniformly random actions forever (an explorer a user might write: one class, no loop edits)."""
 
     def init(self, trainer, student, key):

@@ -116,6 +116,12 @@ def test_per_episode_scales_lie_in_the_range_and_change_only_when_an_episode_sta
     assert not np.array_equal(scale[0], scale[1])
 
 
+def test_adaptive_parameter_noise_is_a_value_of_noise_kind_but_no_registered_kind():
+    """The ddpg explorer has it built in (metapg_jax/action_noise.py's docstring says why)."""
+    assert action_noise.PARAMETER_NOISE == noise_lib.PARAMETER_NOISE == "adaptive-param"
+    assert "adaptive-param" in noise_lib.names() and "adaptive-param" not in action_noise.kinds()
+
+
 @pytest.mark.parametrize("overrides,message", [
     ({"noise.kind": "pink", "pink.beta": -1.0}, "pink.beta must be a finite number >= 0"),
     ({"noise.kind": "mixed", "mixed.min_stddev": 0.5, "mixed.max_stddev": 0.1}, "0 <= min <= max"),

@@ -34,7 +34,7 @@ PLUGIN = textwrap.dedent('''
 
 
     @dataclasses.dataclass(frozen=True)
-    class UniformExplorer:
+    class UniformExplorer(strategy.Explorer):
         cfg: UniformConfig
 
         def init(self, trainer, student, key):
@@ -72,13 +72,9 @@ PLUGIN = textwrap.dedent('''
         def actor(self):
             return self.inner.actor
 
-        @property
-        def critic(self):
-            return self.inner.critic
-
 
     @dataclasses.dataclass(frozen=True)
-    class CountingDDPG:
+    class CountingDDPG(strategy.Student):
         ddpg: DDPG
         obs_size: int
         action_size: int
@@ -99,6 +95,9 @@ PLUGIN = textwrap.dedent('''
             inner, metrics = self.ddpg.update(state.inner, normalizer, batch)
             count = state.count + 1
             return CountingState(inner, count), {**metrics, "own_updates": count.astype(jnp.float32)}
+
+        def guarded_params(self, state):  # the NaN guard's (default: the actor alone)
+            return self.ddpg.guarded_params(state.inner)
 
 
     strategy.register_student("counting", lambda config, obs, act: CountingDDPG(DDPG(config.ddpg, obs, act), obs, act))
@@ -171,3 +170,11 @@ def test_bad_plugins_and_unknown_names_are_refused_before_compiling(tmp_path, ca
     err = capsys.readouterr().err
     assert "unknown student 'redq'; valid students: counting, ddpg, sac, td3" in err
     assert not os.path.exists(tmp_path / "d")
+    misspelt = tmp_path / "misspelt.py"  # an explorer whose metrics hook is misspelt
+    misspelt.write_text(PLUGIN.replace("class UniformExplorer(strategy.Explorer):",
+                                       "class UniformExplorer(strategy.Explorer):\n    def metric(self, carry):\n"
+                                       "        return {}\n"))
+    assert run.main([*TINY, "--plugin", str(misspelt), "--method=uniform", "--out", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err
+    assert "explorer UniformExplorer: 'metric' is not a hook of strategy.Explorer (did you mean 'metrics'?)" in err
+    assert len(err.strip().splitlines()) == 1 and not os.path.exists(tmp_path / "e")

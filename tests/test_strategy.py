@@ -4,6 +4,8 @@ strategy named outside its own file (the import graph: tests/test_imports.py).""
 import ast
 import dataclasses
 import os
+import re
+import types
 
 import jax
 import numpy as np
@@ -39,6 +41,126 @@ def test_an_unknown_method_or_student_is_refused_naming_the_registered_ones():
     with pytest.raises(ValueError, match=r"unknown student 'nope'; valid students: ddpg, sac, td3$"):
         config_lib.make_config("pendulum", student="nope")
 
+
+class _Plain(strategy.ActingExplorer):
+    """An explorer with the required hooks alone: uniformly random actions."""
+
+    def init(self, trainer, student, key):
+        return ()
+
+    def act(self, trainer, carry, student, normalizer, obs, key):
+        return trainer.random_action(key), carry
+
+
+class _Starting(_Plain):
+    def episode_start(self, trainer, carry, student, key):
+        return carry
+
+
+def test_the_loop_asks_no_hook_whether_it_is_there():
+    with open(os.path.join(ROOT, "metapg_jax", "loop.py")) as f:
+        source = f.read()
+    assert "hasattr(" not in source and "getattr(" not in source
+
+
+def test_a_plain_explorer_inherits_hooks_that_do_nothing_and_the_loop_leaves_their_work_out():
+    explorer, carry = _Plain(), {"x": np.zeros(2)}
+    assert explorer.episode_start(None, carry, None, None) is carry
+    assert explorer.adapt(None, carry, None, None, None, None) is carry
+    assert explorer.adapt_every == 0 and explorer.metrics(carry) == {} and explorer.guarded_params(carry) == ()
+    trainer = types.SimpleNamespace(acting_cycle=lambda state: ("the loop's", state))
+    assert explorer.cycle(trainer, "state") == ("the loop's", "state")  # an acting explorer's cycle is the loop's
+
+    def conds(explorer):
+        trainer = make_train(tiny_config("ddpg"), explorer=explorer)
+        state = jax.eval_shape(vmap_seeds(trainer.init), seed_keys(0, 2))
+        return str(jax.make_jaxpr(vmap_seeds(trainer.train_chunk))(state)).count("cond[")
+
+    # The default episode start is not traced at all; one of the explorer's own is, under a conditional.
+    assert conds(_Starting()) > conds(_Plain())
+
+
+def test_a_student_guards_its_actor_by_default():
+    class Minimal(strategy.Student):
+        pass
+
+    state = type("State", (), {"actor": {"w": np.ones(2)}, "critic": {"w": np.ones(2)}})()
+    assert Minimal().guarded_params(state) is state.actor
+    with pytest.raises(NotImplementedError, match="Minimal is deterministic: it has no sample_action"):
+        Minimal().sample_action(None, None, None)
+
+
+class _OwnCycle(strategy.Explorer):
+    def init(self, trainer, student, key):
+        return ()
+
+    def cycle(self, trainer, state):
+        return state, {}
+
+
+class _Unrelated:
+    """The hooks of an acting explorer, without its base."""
+
+    def init(self, trainer, student, key):
+        return ()
+
+    def act(self, trainer, carry, student, normalizer, obs, key):
+        return trainer.random_action(key), carry
+
+
+def _mine(base: type, **hooks) -> type:
+    return type("Mine", (base,), hooks)
+
+
+_ANY = lambda self, *args: None
+
+
+@pytest.mark.parametrize("hooks, error", [
+    ({"episode_starts": _ANY},
+     "'episode_starts' is not a hook of strategy.ActingExplorer (did you mean 'episode_start'?)"),
+    ({"metric": _ANY}, "'metric' is not a hook of strategy.ActingExplorer (did you mean 'metrics'?)"),
+    ({"adapt_evry": 5}, "'adapt_evry' is not a hook of strategy.ActingExplorer (did you mean 'adapt_every'?)"),
+])
+def test_a_misspelt_hook_is_refused_when_registered_or_built_naming_the_closest(hooks, error, monkeypatch):
+    isolated_registry(monkeypatch)
+    mine, error = _mine(_Plain, **hooks), f"^explorer Mine: {re.escape(error)}$"
+    with pytest.raises(ValueError, match=error):
+        strategy.register_explorer("mine", mine)  # a class as ``make``: checked at registration
+    strategy.register_explorer("mine", lambda config: mine())
+    with pytest.raises(ValueError, match=error):
+        make_train(tiny_config("mine"))  # any other ``make``: when the trainer is built
+    with pytest.raises(ValueError, match=error):
+        make_train(tiny_config("ddpg"), explorer=mine())  # an object passed as is
+    strategy.check_explorer(_mine(_Plain, _episode_starts=_ANY, actor=_ANY))  # private and distant names pass
+
+
+def test_a_strategy_outside_the_contract_is_refused_before_compiling():
+    cfg = tiny_config("ddpg")
+    refused = [
+        (_Unrelated(), "explorer _Unrelated derives from neither strategy.ActingExplorer (it chooses actions) nor "
+                       "strategy.Explorer (a cycle of its own)"),
+        (_mine(strategy.ActingExplorer, init=_ANY)(),
+         "explorer Mine lacks act (required of a strategy.ActingExplorer)"),
+        (_mine(strategy.Explorer, init=_ANY)(), "explorer Mine lacks cycle (required of a strategy.Explorer)"),
+        (_mine(_Plain, cycle=_ANY)(), "explorer Mine defines cycle: an ActingExplorer's cycle is the loop's, an "
+                                      "explorer with a cycle of its own derives from strategy.Explorer"),
+        (_mine(_OwnCycle, metrics=_ANY)(), "explorer Mine defines metrics, a hook of strategy.ActingExplorer that "
+                                           "nothing runs for a strategy.Explorer (a cycle of its own)"),
+    ]
+    for explorer, error in refused:
+        with pytest.raises(ValueError, match=f"^{re.escape(error)}$"):
+            make_train(cfg, explorer=explorer)
+    ddpg = make_train(cfg).student
+    refused = [
+        (_Unrelated(), "student _Unrelated does not derive from strategy.Student"),
+        (_mine(strategy.Student, init=_ANY)(), "student Mine lacks obs_size, action_size, normalize, actor_apply, "
+                                               "deterministic_policy, update (required of a strategy.Student)"),
+        (_mine(type(ddpg), normalise=_ANY)(ddpg.cfg, ddpg.obs_size, ddpg.action_size),
+         "student Mine: 'normalise' is not a hook of strategy.Student (did you mean 'normalize'?)"),
+    ]
+    for student, error in refused:
+        with pytest.raises(ValueError, match=f"^{re.escape(error)}$"):
+            make_train(cfg, student=student)
 
 @dataclasses.dataclass(frozen=True)
 class _Knobs:

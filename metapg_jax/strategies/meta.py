@@ -118,8 +118,9 @@ def make_teacher(trainer: Trainer) -> Teacher:
 
 
 @dataclasses.dataclass(frozen=True)
-class TeacherExplorer:
-    """Algorithm 1's teacher as the explorer: ``init`` builds the teacher, ``cycle`` is ``meta_cycle``."""
+class TeacherExplorer(strategy.Explorer):
+    """Algorithm 1's teacher as the explorer: ``init`` builds the teacher, ``cycle`` is ``meta_cycle``; the NaN
+    guard checks the teacher's parameters."""
 
     cfg: MetaConfig
 
@@ -128,6 +129,9 @@ class TeacherExplorer:
 
     def cycle(self, trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
         return meta_cycle(trainer, state)
+
+    def guarded_params(self, carry: TeacherState):
+        return carry.params
 
 
 def first_episode_return(rewards: jax.Array, dones: jax.Array) -> jax.Array:

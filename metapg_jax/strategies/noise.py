@@ -18,8 +18,8 @@ and ``none`` (a = clip(mu(s)), a control).
 
 The action noises are kinds of ``metapg_jax.action_noise`` (``normal``, ``ou``, ``none`` there; colored noise
 and per-episode scales in ``pink.py`` and ``mixed.py``): the explorer acts with clip(mu(s) + scale * z) for the
-kind's ``z`` and ``scale``, the kind's state in ``NoiseState.process``. Adaptive parameter noise perturbs
-parameters, not actions, and is built in here.
+kind's ``z`` and ``scale``, the kind's state in ``NoiseState.process``. Adaptive parameter noise is built in
+here (``metapg_jax.action_noise`` says why it is not a kind).
 
 ``NoiseExplorer`` is the DDPG baseline's explorer, registered as ``ddpg`` (``--method=ddpg``; its group is
 ``noise``, its shortcut ``--noise``). It only chooses actions; the loop's cycle (``Trainer.acting_cycle``) is
@@ -64,7 +64,7 @@ class NoiseState:
     distance: jax.Array        # last measured action distance (adaptive-param)
 
 
-PARAMETER_NOISE = "adaptive-param"   # built in (it perturbs parameters, not actions)
+PARAMETER_NOISE = action_noise.PARAMETER_NOISE   # built in here, not a kind (action_noise's docstring)
 
 
 def perturb(params: Params, key: jax.Array, stddev: jax.Array) -> Params:
@@ -121,7 +121,7 @@ def adapt(config, state: NoiseState, actor_apply: Callable, actor_params: Params
 
 
 @dataclasses.dataclass(frozen=True)
-class NoiseExplorer:
+class NoiseExplorer(strategy.ActingExplorer):
     """The DDPG baselines' exploration: the student's actor plus noise (``config.noise``). It only acts
     (``metapg_jax.strategy.ActingExplorer``): the loop's cycle is ``rollout_steps`` noisy-actor steps, stored,
     then ``train_steps`` updates, with the stddev adaptation before every ``adapt_every`` of them for adaptive

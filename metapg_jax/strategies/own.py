@@ -25,7 +25,7 @@ from metapg_jax.loop import Trainer
 
 
 @dataclasses.dataclass(frozen=True)
-class OwnPolicyExplorer:
+class OwnPolicyExplorer(strategy.ActingExplorer):
     """The student's stochastic policy with the noise kind's ``z`` as its sampling noise (module docstring); an
     ``ActingExplorer`` whose carry is the kind's process state (a colored sequence, ...)."""
 
@@ -63,7 +63,7 @@ def _validate(config) -> None:
     usable = [name for name, k in known.items() if k.policy_noise]
     if config.noise.kind not in usable:
         what = "is not a policy's sampling noise (a standard normal at every step, scaled by the policy)" \
-            if config.noise.kind in known or config.noise.kind == "adaptive-param" else "is unknown"
+            if config.noise.kind in known or config.noise.kind == action_noise.PARAMETER_NOISE else "is unknown"
         raise ValueError(f"--noise={config.noise.kind} {what}; with --method={NAME}: {', '.join(sorted(usable))}")
     action_noise.validate(config)
     action_noise.check_warmup(config)
