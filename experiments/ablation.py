@@ -34,7 +34,8 @@ from typing import Sequence
 
 import numpy as np
 
-from experiments.analysis import cells, figures, stats
+from experiments.analysis import cells, stats
+from experiments.analysis.render import figures
 
 MANIFEST = "ablation.json"
 

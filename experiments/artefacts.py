@@ -42,7 +42,7 @@ Definitions (final return, ±, CI, p; also written into the files): ``experiment
 Layout: ``experiments.grid.methods`` (tasks, methods, baselines), ``experiments.analysis.stats`` (statistics and
 number formatting), ``experiments.analysis.cells`` (reading run folders, the committed archive,
 provenance), ``experiments.analysis.tables`` (Table 2, steps to threshold, comparisons, behaviour, README.md),
-``experiments.analysis.figures`` (curves, teacher designs, visitation); this module rebuilds everything
+``experiments.analysis.render.figures`` (curves, teacher designs, visitation); this module rebuilds everything
 (``build_all``) and is the command line.
 """
 
@@ -55,7 +55,9 @@ import os
 import sys
 from typing import Sequence
 
-from experiments.analysis import behaviour, cells, figures, readme, tables
+from experiments.analysis import behaviour, cells, tables
+from experiments.analysis.render import figures, readme
+from experiments.analysis.render import tables as tables_md
 from experiments.grid import methods as grid
 from experiments.grid.methods import BASELINES, GRIDS, baseline_for, grid_label, methods_for
 
@@ -100,8 +102,8 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
     footer = cells.provenance_footer(build, results.values())
     rows = tables.table2_rows(results, tasks, methods, baseline)
     families = tables.verdict_families(rows, methods, baseline, anchors)
-    files = tables.write_table2(rows, methods, out_dir, footer, preset, build["commit"],
-                                tables.engines_text(results.values()), student=student, families=families)
+    files = tables_md.write_table2(rows, methods, out_dir, footer, preset, build["commit"],
+                                tables_md.engines_text(results.values()), student=student, families=families)
     aggregate_note = None
     if anchors is None:
         aggregate_note = f"no normalisation anchors ({aggregate.repo_path(anchors_path)} not found)"
@@ -119,9 +121,9 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
     if aggregate_note:
         _remove_stale(out_dir, ("aggregate.md", "aggregate.json", "performance_profiles.png"))
     files += figures.write_curves(results, tasks, methods, out_dir, build, preset, student=student)
-    files += tables.write_steps_to_threshold(tables.steps_to_threshold_rows(results, tasks, methods, baseline),
+    files += tables_md.write_steps_to_threshold(tables.steps_to_threshold_rows(results, tasks, methods, baseline),
                                              out_dir, footer, preset, build["commit"], student=student)
-    files += tables.write_comparisons(tables.comparison_rows(results, tasks, methods), out_dir, footer, preset,
+    files += tables_md.write_comparisons(tables.comparison_rows(results, tasks, methods), out_dir, footer, preset,
                                       build["commit"], student=student)
     files += behaviour.write_behaviour(behaviour.behaviour_rows(results, tasks, methods), out_dir, footer, preset,
                                     build["commit"], student=student)
@@ -141,7 +143,7 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
                 **({"aggregate_not_built": aggregate_note} if aggregate_note else {})}
     files.append(readme.write_readme(out_dir, manifest, rows, methods, footer, families))
     with open(os.path.join(out_dir, "manifest.json"), "w") as f:
-        json.dump(manifest, f, indent=2, default=tables.json_default)
+        json.dump(manifest, f, indent=2, default=tables_md.json_default)
     return manifest
 
 

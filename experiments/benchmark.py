@@ -59,6 +59,7 @@ import time
 import envs
 from experiments import reproduce
 from experiments.analysis import benchmark as artefacts
+from experiments.analysis.render import benchmark as bench_report
 from experiments.grid import methods as grid
 from experiments.grid.methods import (LEARNED, METHODS, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, baseline_for,
                                     task_folder)
@@ -336,7 +337,7 @@ def run_parsed(a: argparse.Namespace, argv: list[str]) -> int:
                "seed": a.seed, "steps": a.steps,
                "physics": a.physics, "overrides": a.overrides,
                "argv": argv}
-    manifest = artefacts.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
+    manifest = bench_report.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
                                extra_provenance={"benchmark_wall_seconds": round(time.perf_counter() - t0, 2)})
     print(f"artefacts: {len(manifest['files'])} files in {a.results_dir} ({len(manifest['cells'])} stored cells, "
           f"{len(manifest['not_run'])} not run)", flush=True)

@@ -394,7 +394,7 @@ def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
 
 
 def _plot(out: str, rows: list[dict], fields: list[str]) -> None:
-    from experiments.analysis.figures import pyplot
+    from experiments.analysis.render.figures import pyplot
 
     plt = pyplot()
     shown = [e for e in rows if "mean" in e]

@@ -105,6 +105,7 @@ BENCHMARK_BUILDS = ("results/exploration", "results/first-look", "results/learne
                                                           "judgement", "lookahead-125", "lookahead-25", "lookahead-10"])
 def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
     from experiments.analysis import benchmark as bench_artefacts
+    from experiments.analysis.render import benchmark as bench_report
 
     committed = os.path.join(ROOT, folder)
     with open(os.path.join(committed, "manifest.json")) as f:
@@ -126,7 +127,7 @@ def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, 
     monkeypatch.setattr(cells, "build_info", lambda runs_dir: {k: copy.deepcopy(v) for k, v in build.items()
                                                                 if k not in extra})
 
-    manifest = bench_artefacts.build(build["runs_dir"], folder, entries, tasks, plan=plan, extra_provenance=extra)
+    manifest = bench_report.build(build["runs_dir"], folder, entries, tasks, plan=plan, extra_provenance=extra)
 
     assert not (tmp_path / build["runs_dir"]).exists()
     assert manifest["files"] == stored["files"]

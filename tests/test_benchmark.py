@@ -12,6 +12,7 @@ import pytest
 
 from experiments import benchmark
 from experiments.analysis import benchmark as artefacts
+from experiments.analysis.render import benchmark as bench_report
 from experiments.analysis import stats
 from experiments.grid import methods as grid
 from experiments.training import grid_cells
@@ -207,7 +208,7 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
     entries = artefacts.entries_for(["td3", "sac"], ["td3-pink", "meta-independent", "sac-pink"])
     assert [e.key for e in entries] == ["td3/td3-normal", "td3/td3-pink", "td3/meta-independent", "sac/sac-own",
                                         "sac/sac-pink"]  # each student's Gaussian noise always planned
-    manifest = artefacts.build(str(runs), str(results), entries, ["hopper", "reacher", gym_task],
+    manifest = bench_report.build(str(runs), str(results), entries, ["hopper", "reacher", gym_task],
                                plan={"name": "t", "students": ["td3", "sac"], "seeds": 4, "seed": 1000, "steps": 3000,
                                      "physics": "mujoco"}, anchors_path=str(anchors))
     assert manifest["not_run"] == [["sac", "reacher", "sac-pink"]]
@@ -295,7 +296,7 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
     assert "| verdicts (better / worse / equivalent / inconclusive) |" in readme
     assert "`NOTES.md`" not in readme      # a hand-kept file is listed only where it exists
     (results / "NOTES.md").write_text("# how the cells ran\n")
-    artefacts.build(str(runs), str(results), entries, ["hopper", "reacher", gym_task], anchors_path=str(anchors),
+    bench_report.build(str(runs), str(results), entries, ["hopper", "reacher", gym_task], anchors_path=str(anchors),
                     plan={"name": "t", "students": ["td3", "sac"], "seeds": 4, "seed": 1000, "steps": 3000})
     assert "| `NOTES.md` | how the cells ran, kept by hand" in (results / "README.md").read_text()
     assert (results / "NOTES.md").read_text() == "# how the cells ran\n"
@@ -306,7 +307,7 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
     assert [(e.key, e.baseline) for e in chosen] == [("td3/td3-pink", "td3-pink"),
                                                      ("td3/meta-independent", "td3-pink")]
     judged = tmp_path / "judged"
-    artefacts.build(str(runs), str(judged), chosen, ["hopper", "reacher"], anchors_path=str(anchors),
+    bench_report.build(str(runs), str(judged), chosen, ["hopper", "reacher"], anchors_path=str(anchors),
                     plan={"name": "j", "students": ["td3"], "seeds": 4, "seed": 1000, "steps": 3000})
     rows = {r["method"]: r for r in json.loads((judged / "tasks" / "hopper.json").read_text())["rows"]}
     assert rows["td3-pink"]["verdict"] is None and rows["meta-independent"]["baseline"] == "td3-pink"

@@ -1,10 +1,10 @@
-"""experiments.analysis.figures: the state-visitation samples, embeddings and figure."""
+"""experiments.analysis.render.figures: the state-visitation samples, embeddings and figure."""
 
 import numpy as np
 import pytest
 
 from experiments import artefacts
-from experiments.analysis import figures
+from experiments.analysis.render import figures
 from tests.helpers import fabricate_run
 
 

@@ -92,3 +92,21 @@ def test_the_package_has_no_import_cycles_and_nothing_imports_a_strategy():
 
     for m in sorted(graph):
         visit(m, [])
+
+
+MAX_MODULE_LINES = 400
+
+
+def test_no_module_is_over_400_lines():
+    """One responsibility per module: a module past ``MAX_MODULE_LINES`` is split by concern."""
+    long = []
+    for package in ("metapg_jax", "envs", "experiments"):
+        for folder, _, files in os.walk(os.path.join(ROOT, package)):
+            for name in files:
+                if name.endswith(".py"):
+                    path = os.path.join(folder, name)
+                    with open(path) as f:
+                        lines = sum(1 for _ in f)
+                    if lines > MAX_MODULE_LINES:
+                        long.append(f"{os.path.relpath(path, ROOT)} ({lines})")
+    assert not long, f"modules over {MAX_MODULE_LINES} lines: {', '.join(long)}"

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from experiments.analysis import cells, learned
+from experiments.analysis.render import learned as learned_report
 from experiments.grid.methods import LEARNED_METHODS
 
 
@@ -70,7 +71,7 @@ def test_the_diagnostics_of_a_fabricated_bandit_cell(tmp_path):
 
     # The report: every learned method of the student on the task, the missing ones said as such.
     out = tmp_path / "res"
-    assert learned.main(["--results-dir", str(out), "--tasks", "hopper"]) == 0
+    assert learned_report.main(["--results-dir", str(out), "--tasks", "hopper"]) == 0
     md = (out / "diagnostics.md").read_text()
     row = next(line for line in md.splitlines() if "| bandit over noise scales |" in line)
     assert "| 3 | 3.606 | 4.000 | 0.90 |" in row and "| 2 of 3 |" in row
@@ -119,9 +120,9 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
     anchors.write_text(json.dumps({"tasks": {"hopper": {"random_return": 0.0, "reference_return": 1000.0}}}))
     argv = ["--results-dir", str(tmp_path / "res"), "--tasks", "hopper", "--anchors", str(anchors)]
     figure = tmp_path / "res" / "meta_reward.png"
-    assert learned.main(argv + ["--no-plot"]) == 0
+    assert learned_report.main(argv + ["--no-plot"]) == 0
     assert not figure.exists() and "meta_reward.png" not in (tmp_path / "res" / "diagnostics.md").read_text()
-    assert learned.main(argv) == 0  # the three cells with per-cycle metrics drawn in one panel
+    assert learned_report.main(argv) == 0  # the three cells with per-cycle metrics drawn in one panel
     assert figure.stat().st_size > 10_000
     assert "![meta reward per cycle](meta_reward.png)" in (tmp_path / "res" / "diagnostics.md").read_text()
     pred = json.loads((tmp_path / "res" / "diagnostics.json").read_text())["predictions"]["td3"]
@@ -162,7 +163,7 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
     md = (tmp_path / "res" / "diagnostics.md").read_text()
     assert "| H2 | bandit over noise scales beats control: D0 with noise 0.1 | Hopper |" in md
     assert "| refuted |" in md and "| not run: control-frozen |" in md and "(H4): a family of its own" in md
-    assert learned.main(["--results-dir", str(tmp_path / "res"), "--anchors", str(tmp_path / "none.json")]) == 2
+    assert learned_report.main(["--results-dir", str(tmp_path / "res"), "--anchors", str(tmp_path / "none.json")]) == 2
 
 
 def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path, capsys):
@@ -171,6 +172,7 @@ def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path, capsys):
     third does not, nor does one no different from it (never worse, P's interval around 0.5); with a cell not run
     the goal is pending and says why; the grid's plan leaves the screen's controls out of the diagnostics."""
     from experiments.analysis import benchmark as artefacts
+    from experiments.analysis.render import benchmark as bench_report
     from experiments.grid import methods as grid
     from tests.helpers import fabricate_run
 
@@ -196,9 +198,9 @@ def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path, capsys):
     plan = {"name": "j", "students": ["td3"], "seeds": 8, "seed": 2000, "steps": 3000}
     argv = ["--results-dir", str(res), "--anchors", str(anchors), "--goal"]
     res.mkdir()
-    assert learned.main(argv) == 2 and "--artefacts-only" in capsys.readouterr().err   # no artefacts built yet
-    artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors), plan=plan)
-    assert learned.main(argv + ["--tasks", "pendulum,hopper,reacher"]) == 0   # the grid's tasks, in any order
+    assert learned_report.main(argv) == 2 and "--artefacts-only" in capsys.readouterr().err   # no artefacts built yet
+    bench_report.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors), plan=plan)
+    assert learned_report.main(argv + ["--tasks", "pendulum,hopper,reacher"]) == 0   # the grid's tasks, in any order
     out = capsys.readouterr().out
     report = json.loads((res / "diagnostics.json").read_text())
     g = report["goal"]["td3"]
@@ -227,13 +229,13 @@ def test_the_judgements_goal_from_a_fabricated_benchmark(tmp_path, capsys):
     # A planned cell not run: pending, with the reason, whatever the others say.
     shutil.rmtree(res / "td3" / "cells" / "reacher" / "learned-bandit")
     shutil.rmtree(runs / "td3" / "paper" / "reacher" / "learned-bandit")
-    artefacts.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors), plan=plan)
-    assert learned.main(argv) == 0
+    bench_report.build(str(runs), str(res), entries, list(tasks), anchors_path=str(anchors), plan=plan)
+    assert learned_report.main(argv) == 0
     rows = {r["method"]: r for r in json.loads((res / "diagnostics.json").read_text())["goal"]["td3"]["variants"]}
     assert rows["learned-paired"]["outcome"].startswith(
         "pending (1 of the student's 12 planned cells not finished: reacher/learned-bandit not run")
     # Bad input: a part of the grid's tasks, a student it never planned, a folder without the benchmark's manifest.
-    assert learned.main(argv + ["--tasks", "hopper"]) == 2 and "not a part of them" in capsys.readouterr().err
-    assert learned.main(argv + ["--students", "sac"]) == 2 and "sac not in the grid's plan" in capsys.readouterr().err
+    assert learned_report.main(argv + ["--tasks", "hopper"]) == 2 and "not a part of them" in capsys.readouterr().err
+    assert learned_report.main(argv + ["--students", "sac"]) == 2 and "sac not in the grid's plan" in capsys.readouterr().err
     (res / "manifest.json").unlink()
-    assert learned.main(argv) == 2 and "needs the benchmark's manifest.json" in capsys.readouterr().err
+    assert learned_report.main(argv) == 2 and "needs the benchmark's manifest.json" in capsys.readouterr().err

@@ -12,6 +12,7 @@ from scipy import stats
 
 from experiments import artefacts
 from experiments.analysis import cells, tables
+from experiments.analysis.render import tables as tables_md
 from experiments.grid import methods as grid
 from experiments.analysis import stats as stats_lib
 from experiments.analysis.stats import fmt
@@ -72,9 +73,9 @@ def test_table2_numbers_match_hand_computation(fabricated):
     assert pend_line.count("not run") == 2  # meta-variance and param noise: planned, shown, not run there
     assert "| 20,000 (reduced; paper: 1,500,000) |" in idp_line  # tiny budget: flagged
     # the paper budget rounded down to whole evaluation intervals is not a reduction; anything less is
-    assert tables.budget_text("hopper", {"meta-independent": 990_000}) == "990,000"
-    assert tables.budget_text("reacher", {"meta-independent": 696_000, "ddpg-normal": 696_000}) == "696,000"
-    assert tables.budget_text("hopper", {"meta-independent": 450_000, "ddpg-paramnoise": 990_000}) == \
+    assert tables_md.budget_text("hopper", {"meta-independent": 990_000}) == "990,000"
+    assert tables_md.budget_text("reacher", {"meta-independent": 696_000, "ddpg-normal": 696_000}) == "696,000"
+    assert tables_md.budget_text("hopper", {"meta-independent": 450_000, "ddpg-paramnoise": 990_000}) == \
         "Meta (independent): 450,000; DDPG (param noise): 990,000 (reduced; paper: 1,000,000)"
     assert "incomplete (5,000 of 15,000 steps)" in md
     assert "| Hopper |" not in md and "| Reacher |" not in md  # tasks with no cell stored: left out
@@ -102,7 +103,7 @@ def test_no_welch_test_between_cells_of_different_budgets(tmp_path):
     assert row["welch"] is None and row["welch_skipped"] == "budgets differ"
     comparisons = tables.comparison_rows(results, ["reacher"], list(grid.METHODS))
     assert len(comparisons["methods"]) == 2 and comparisons["pairs"] == []  # no pair across budgets either
-    tables.write_table2([row], list(grid.METHODS), str(tmp_path / "out"), "", "paper")
+    tables_md.write_table2([row], list(grid.METHODS), str(tmp_path / "out"), "", "paper")
     md = (tmp_path / "out" / "table2.md").read_text()
     assert "Reacher, Meta (independent): not compared (budgets differ)." in md
 
@@ -220,14 +221,14 @@ def test_table2_judges_every_teacher_against_every_noise_baseline_with_holm(tmp_
     assert normal["reacher"]["verdict"] in ("inconclusive", "equivalent")
     assert normal["reacher"]["verdict"] == ("equivalent" if normal["reacher"]["p_equivalence_holm"] < 0.05
                                             else "inconclusive")
-    tables.write_table2(rows, grid.GRIDS["ddpg"], str(tmp_path / "out"), "", "paper", families=fams)
+    tables_md.write_table2(rows, grid.GRIDS["ddpg"], str(tmp_path / "out"), "", "paper", families=fams)
     md = (tmp_path / "out" / "table2.md").read_text()
     assert "### Against DDPG (param noise) (the grid's baseline, fixed in advance): a family of 1 comparison" in md
     assert "### Against DDPG (normal noise): a family of 2 comparisons" in md and "better noise baseline" not in md
     assert json.loads((tmp_path / "out" / "table2.json").read_text())["verdicts"][1]["baseline"] == "ddpg-normal"
     # The footer's engines: the MuJoCo cells' physics; a grid with only the JAX Pendulum stored names no MuJoCo engine.
-    assert tables.engines_text(results.values()) == "MJX"
-    assert "MJX" not in tables.engines_text([results[("pendulum", "ddpg-normal")]])
+    assert tables_md.engines_text(results.values()) == "MJX"
+    assert "MJX" not in tables_md.engines_text([results[("pendulum", "ddpg-normal")]])
 
 
 def test_modern_preset_compares_meta_with_its_own_gaussian_noise_ddpg(tmp_path):

@@ -13,7 +13,7 @@ import numpy as np
 from experiments.analysis.cells import BEHAVIOUR_METRICS
 from experiments.grid.methods import BASELINE, META, METHOD_NAMES, grid_label, task_name
 from experiments.analysis.stats import BOOTSTRAP_REPS, BOOTSTRAP_SEED, final_returns, fmt, mean_std
-from experiments.analysis.tables import write_md_and_json
+from experiments.analysis.render.tables import write_md_and_json
 
 # State coverage as numbers (the coverage table): the occupied cells of a grid over a 2-D projection, the
 # k-NN spread, the distance to the student's states.
@@ -144,7 +144,7 @@ def coverage_rows(results: dict, tasks: Sequence[str], baseline: str = BASELINE)
     "comparisons": [...]}``."""
     from sklearn.decomposition import PCA
 
-    from experiments.analysis import figures
+    from experiments.analysis.render import figures
     from experiments.analysis.cells import thin_visits
     from experiments.analysis.stats import bootstrap_difference, bootstrap_mean
 

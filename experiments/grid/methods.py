@@ -4,7 +4,7 @@ and the DDPG baseline each preset's Meta is compared against; the exploration be
 student (``STRATEGIES``).
 
 Shared by everything that runs or reads the grid (``experiments.reproduce``, ``experiments.analysis.cells``,
-``experiments.analysis.tables``, ``experiments.analysis.figures``, ``experiments.artefacts``, ``experiments.benchmark``).
+``experiments.analysis.tables``, ``experiments.analysis.render.figures``, ``experiments.artefacts``, ``experiments.benchmark``).
 """
 
 from __future__ import annotations

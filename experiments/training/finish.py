@@ -51,7 +51,7 @@ def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool
         metric_rows.plot_learning_curve(rows, os.path.join(out, "learning_curve.png"), title)
         spec = cfg.explorer_spec
         if spec.cycle_panels and spec.cycle_metrics:  # (cycles.jsonl is written for cycle metrics only)
-            from experiments.analysis.plots import plot_cycles
+            from experiments.analysis.render.plots import plot_cycles
 
             plot_cycles(runfiles.read_jsonl(os.path.join(out, "cycles.jsonl")), spec.cycle_panels,
                         os.path.join(out, spec.plot_file), title)

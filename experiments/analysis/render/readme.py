@@ -7,7 +7,8 @@ from typing import Sequence
 
 from experiments.grid.methods import METHOD_NAMES, baseline_for, grid_label, task_name
 from experiments.analysis.stats import fmt_p
-from experiments.analysis.tables import cell_text, verdict_families
+from experiments.analysis.render.tables import cell_text
+from experiments.analysis.tables import verdict_families
 
 
 def write_readme(out_dir: str, manifest: dict, rows: list[dict], methods: Sequence[str], footer: str,

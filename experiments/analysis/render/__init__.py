@@ -1,0 +1,2 @@
+"""The analysis' rendering: markdown tables, READMEs and figures written from what ``experiments.analysis`` computes
+(nothing here computes a statistic)."""
