@@ -159,7 +159,7 @@ def default_budget(name: str) -> int:
     Equal to the paper's for pendulum, IP, IDP and HalfCheetah; Hopper gets
     990k instead of 1M and Reacher 696k instead of 700k, because the meta
     cycle (300 steps) does not divide the paper's numbers. A ``gym:`` task has no
-    paper budget: 1M (``envs.gym_generic.DEFAULT_BUDGET``), i.e. 990k.
+    paper budget: 1M (``envs.gym_names.DEFAULT_BUDGET``), i.e. 990k.
     """
     spec = get_spec(name)
     return (spec.paper_budget // spec.eval_every) * spec.eval_every
@@ -169,7 +169,7 @@ def get_spec(name: str) -> TaskSpec:
     """The task's protocol; ``ValueError`` (one line) for an unknown task, or a ``gym:`` id that is not a
     registered gymnasium MuJoCo env (checked without building it)."""
     if is_gym_task(name):
-        from envs.gym_generic import task_spec
+        from envs.gym_names import task_spec
 
         return task_spec(name)
     if name not in TASKS:

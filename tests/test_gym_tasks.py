@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 import envs
-from envs.gym_generic import GymnasiumCEnv, make_gymnasium_env, parse_name
+from envs.gym_generic import GymnasiumCEnv
+from envs.gym_names import make_gymnasium_env, parse_name
 from envs.mujoco_c import STATE_SPEC
 
 # Two envs per batch: full-range random actions (Walker2d falls within the episode) and actions scaled by 0.1.
