@@ -123,20 +123,19 @@ def compare(runs: Sequence[tuple[str, cells.RunResult]], upto: int) -> list[dict
                      "diff": {} if i == 0 else config_diff(r.config, control.config),
                      "teacher": teacher_log_std(r.path, r.config, upto),
                      "budget": r.budget, "commit": r.provenance.get("commit") or r.info.get("commit")})
-    judged = stats.judge_family([(r["finals"], finals_control, _margin(control.task)) for r in rows[1:]])
-    for r, j in zip(rows[1:], judged):
+    family = stats.VerdictFamily(_anchors())
+    for r in rows[1:]:
+        family.add(r["name"], r["finals"], finals_control, control.task)
+    for r, (_, j) in zip(rows[1:], family.judge()):
         r["judged"] = j
     return rows
 
 
-def _margin(task: str) -> float | None:
-    """The task's equivalence margin from the normalisation anchors (None without them)."""
+def _anchors() -> dict | None:
+    """The normalisation anchors of the equivalence margins (None without them)."""
     from experiments import normalisation
 
-    if not os.path.exists(normalisation.DEFAULT_OUT):
-        return None
-    low_high = normalisation.load(normalisation.DEFAULT_OUT).get(task)
-    return None if low_high is None else stats.EQUIVALENCE_MARGIN * (low_high[1] - low_high[0])
+    return normalisation.load(normalisation.DEFAULT_OUT) if os.path.exists(normalisation.DEFAULT_OUT) else None
 
 
 def _diff_text(row: dict) -> str:

@@ -122,25 +122,22 @@ def task_rows(results_dir: str, task: str, upto: int) -> tuple[list[dict], list[
 
 
 def verdicts(by_task: dict, anchors: dict | None = None) -> dict:
-    """The screen's corrected verdicts (``stats.judge_family``), one family per reference, over every task:
+    """The screen's corrected verdicts (``stats.VerdictFamily``), one family per reference, over every task:
     each variant against the paper's teacher, and each teacher variant (not the noise baselines) against each
     noise baseline. ``{reference: {(task, variant): judged}}``; margins: ``stats.EQUIVALENCE_MARGIN`` of the
     task's anchors' range (none without anchors)."""
     out = {}
     for ref in (CONTROL, *BASELINES):
-        keys, pairs = [], []
+        family = stats.VerdictFamily(anchors)
         for task, (rows, _) in by_task.items():
             found = {r["name"]: r for r in rows}
             if ref not in found:
                 continue
-            low_high = (anchors or {}).get(task)
-            margin = None if low_high is None else stats.EQUIVALENCE_MARGIN * (low_high[1] - low_high[0])
             for r in rows:
                 if r["name"] == ref or (ref in BASELINES and r["name"] in BASELINES):
                     continue
-                keys.append((task, r["name"]))
-                pairs.append((r["finals"], found[ref]["finals"], margin))
-        out[ref] = dict(zip(keys, stats.judge_family(pairs)))
+                family.add((task, r["name"]), r["finals"], found[ref]["finals"], task)
+        out[ref] = dict(family.judge())
     return out
 
 

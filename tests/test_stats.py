@@ -208,3 +208,18 @@ def test_first_step_reaching():
     steps = np.array([100, 200, 300, 400])
     assert first_step_reaching(steps, np.array([0.0, np.nan, 5.0, 7.0]), 5.0) == 300
     assert first_step_reaching(steps, np.array([0.0, 1.0, 2.0, 3.0]), 5.0) is None
+
+
+def test_a_verdict_family_is_judge_family_with_each_tasks_margin():
+    """``VerdictFamily``: the comparisons in the order added, each task's margin from its anchors (none without)."""
+    rng = np.random.default_rng(3)
+    a, b, c = (rng.normal(m, 1.0, 10) for m in (0.0, 0.1, 3.0))
+    anchors = {"hopper": (0.0, 40.0)}
+    family = stats.VerdictFamily(anchors)
+    family.add("x", a, b, "hopper")
+    family.add("y", c, b, "reacher")
+    judged = family.judge()
+    assert [k for k, _ in judged] == ["x", "y"]
+    assert str([j for _, j in judged]) == str(stats.judge_family([(a, b, 2.0), (c, b, None)]))  # NaN != NaN
+    assert judged[0][1]["margin"] == 2.0 and judged[1][1]["margin"] is None
+    assert stats.equivalence_margin(None, "hopper") is None

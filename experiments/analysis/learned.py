@@ -202,8 +202,8 @@ def outcome(kind: str, verdict: str) -> str:
 def judged(results_dir: str, student: str, tasks: list[str], pairs: list[tuple[str, str]],
            anchors: dict | None) -> list[dict]:
     """One family: each (a, b) of ``pairs`` on each task, Holm-corrected over those where both cells finished at
-    the same budget (``stats.judge_family``); the others with their state."""
-    rows, tested = [], []
+    the same budget (``stats.VerdictFamily``); the others with their state."""
+    rows, family = [], stats.VerdictFamily(anchors)
     for a, b in pairs:
         for task in tasks:
             fa, fb = final_returns(results_dir, student, task, a), final_returns(results_dir, student, task, b)
@@ -213,12 +213,10 @@ def judged(results_dir: str, student: str, tasks: list[str], pairs: list[tuple[s
             elif fa[1] != fb[1]:
                 rows.append({**row, "state": "budgets differ"})
             else:
-                lo_hi = (anchors or {}).get(task)
-                margin = None if lo_hi is None else stats.EQUIVALENCE_MARGIN * (lo_hi[1] - lo_hi[0])
                 rows.append({**row, "state": "compared", "mean_a": float(np.mean(fa[0])),
                              "mean_b": float(np.mean(fb[0]))})
-                tested.append((len(rows) - 1, (fa[0], fb[0], margin)))
-    for (i, _), verdict in zip(tested, stats.judge_family([p for _, p in tested])):
+                family.add(len(rows) - 1, fa[0], fb[0], task)
+    for i, verdict in family.judge():
         rows[i].update(verdict)
     return rows
 

@@ -356,6 +356,30 @@ def judge_family(pairs: Sequence[tuple[Sequence[float], Sequence[float], float |
     return out
 
 
+def equivalence_margin(anchors: dict | None, task: str) -> float | None:
+    """The task's equivalence margin in return units: ``EQUIVALENCE_MARGIN`` of its anchors' range (reference −
+    random return); None where ``anchors`` has none for it (nothing is then judged equivalent)."""
+    low_high = (anchors or {}).get(task)
+    return None if low_high is None else EQUIVALENCE_MARGIN * (low_high[1] - low_high[0])
+
+
+class VerdictFamily:
+    """One family of corrected verdicts, the one way every table assembles its families: ``add`` each comparison
+    (a key, a's and b's per-seed finals, the task whose anchors give the margin), then ``judge`` them together
+    (``judge_family``: Holm-corrected within the family, 'equivalent' only by the TOST of the margin)."""
+
+    def __init__(self, anchors: dict | None = None):
+        self.anchors, self.keys, self.pairs = anchors, [], []
+
+    def add(self, key, a: Sequence[float], b: Sequence[float], task: str) -> None:
+        self.keys.append(key)
+        self.pairs.append((a, b, equivalence_margin(self.anchors, task)))
+
+    def judge(self) -> list[tuple]:
+        """[(key, verdict)] in the order added (``judge_family``'s dicts)."""
+        return list(zip(self.keys, judge_family(self.pairs)))
+
+
 # -- bootstrap intervals of a mean and of a difference of means over seeds (the coverage table's) --------------
 
 

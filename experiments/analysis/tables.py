@@ -14,8 +14,8 @@ import numpy as np
 
 from experiments.analysis.cells import cell_provenance
 from experiments.grid.methods import (BASELINE, META, noise_methods)
-from experiments.analysis.stats import (EQUIVALENCE_MARGIN, first_step_reaching, judge_family, mean_std, num_final_evaluations,
-                                     t_interval, welch_test)
+from experiments.analysis.stats import (VerdictFamily, first_step_reaching, mean_std, num_final_evaluations,
+                                        t_interval, welch_test)
 
 # The seeds of the paper's Table 2 (Xu et al., 2018), whose numbers each task's spec holds (envs.TaskSpec.table2).
 PAPER_SEEDS = 3
@@ -89,7 +89,7 @@ def verdict_family(rows: list[dict], base: str, compared_methods: Sequence[str],
     """One family of corrected verdicts (``stats.judge_family``): each of ``compared_methods`` against ``base`` on
     every task of ``rows`` (``table2_rows``) where both cells finished at the same budget (cells of different
     budgets are listed as skipped); equivalence margins from ``anchors`` as in ``verdict_families``."""
-    compared, pairs, skipped = [], [], []
+    family, skipped = VerdictFamily(anchors), []
     for row in rows:
         b = row["methods"].get(base, {})
         for m in compared_methods:
@@ -99,12 +99,9 @@ def verdict_family(rows: list[dict], base: str, compared_methods: Sequence[str],
             if a["budget"] != b["budget"]:  # never a test between cells of different budgets (mid-extension)
                 skipped.append({"task": row["task"], "method": m, "why": "budgets differ"})
                 continue
-            low_high = (anchors or {}).get(row["task"])
-            margin = None if low_high is None else EQUIVALENCE_MARGIN * (low_high[1] - low_high[0])
-            compared.append({"task": row["task"], "method": m})
-            pairs.append((a["per_seed"], b["per_seed"], margin))
+            family.add({"task": row["task"], "method": m}, a["per_seed"], b["per_seed"], row["task"])
     return {"baseline": base, "fixed_in_advance": fixed_in_advance, "skipped": skipped,
-            "comparisons": [{**c, **j} for c, j in zip(compared, judge_family(pairs))]}
+            "comparisons": [{**c, **j} for c, j in family.judge()]}
 
 
 # ---------------------------------------------------------------------------------------------- steps to threshold
