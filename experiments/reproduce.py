@@ -51,7 +51,9 @@ from experiments.artefacts import add_figure_options, build_all
 from experiments.analysis.cells import results_dir_for
 from experiments.grid import methods as grid
 from experiments.grid.methods import BASELINES, GRIDS, baseline_for, methods_for
+from experiments.grid import estimate
 from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
+from experiments.grid.estimate import add_estimate_options, check_estimate_options
 from experiments.training import grid_cells
 
 # Where --physics=mujoco keeps its grid by default, apart from the MJX grid's runs/reproduce and results.
@@ -92,6 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--artefacts-only", action="store_true", help="train nothing; rebuild the artefacts only")
     add_figure_options(p)
     p.add_argument("--dry-run", action="store_true", help="print what would be run, skipped or resumed; do nothing")
+    add_estimate_options(p, by_default=False)
     return p
 
 
@@ -129,6 +132,7 @@ def run_parsed(args: argparse.Namespace, argv: list[str]) -> int:
                              baseline_for(args.preset, args.student))
         spec = grid_spec(args, args.preset, args.student, args.source)
         cells = [grid_cells.grid_cell(placement, spec, t, m) for t in tasks for m in methods]
+        check_estimate_options(args, tasks)
         if not args.artefacts_only:
             grid_cells.validate_cells(cells)
     except ValueError as err:
@@ -136,6 +140,8 @@ def run_parsed(args: argparse.Namespace, argv: list[str]) -> int:
         return 2
     t0 = time.perf_counter()
     status, report = 0, {}
+    if args.dry_run and not args.no_calibrate:
+        return estimate.dry_run(args, tasks, cells)
     if not args.artefacts_only:
         status, report = launch(cells, args)
     if args.dry_run:

@@ -30,7 +30,9 @@ import envs
 from experiments import ablation, reproduce
 from experiments.analysis import cells, stats
 from experiments.grid.methods import task_name
+from experiments.grid import estimate
 from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
+from experiments.grid.estimate import add_estimate_options, check_estimate_options
 from experiments.grid.spec import Method
 from experiments.training import grid_cells
 from experiments.training.screen_variants import BASELINES, CONTROL, DEFAULT_STEPS, DEFAULT_TASKS, VARIANTS
@@ -49,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
                      results_help="archive and report (default results/screen)")
     p.add_argument("--report-only", action="store_true", help="train nothing; rebuild the report from what is stored")
     p.add_argument("--dry-run", action="store_true", help="print what would run; do nothing")
+    add_estimate_options(p, by_default=False)
     return p
 
 
@@ -92,6 +95,7 @@ def plan(a: argparse.Namespace) -> list[grid_cells.Cell]:
     spec = grid_spec(a, "paper")
     out = [grid_cells.grid_cell(placement, spec, task, name, options, key=(task, name), tag=f"{task}/{name}")
            for task in tasks for name in names if (options := cell_options(task, name, a.physics)) is not None]
+    check_estimate_options(a, tasks)
     grid_cells.validate_cells(out)
     return out
 
@@ -273,6 +277,8 @@ def run_parsed(a: argparse.Namespace, argv: list[str] | None = None) -> int:
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
+    if a.dry_run and not a.no_calibrate:
+        return estimate.dry_run(a, list(dict.fromkeys(cell.task for cell in todo)), todo)
     status = 0
     if not a.report_only:
         status = run_cells(a, todo)

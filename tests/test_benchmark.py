@@ -13,6 +13,7 @@ import pytest
 from experiments import benchmark
 from experiments.analysis import benchmark as artefacts
 from experiments.analysis.render import benchmark as bench_report
+from experiments.grid import estimate
 from experiments.analysis import stats
 from experiments.grid import methods as grid
 from experiments.training import grid_cells
@@ -131,7 +132,7 @@ def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_r
     a = benchmark.build_parser().parse_args(argv + ["--dry-run", "--calibration-steps", "600"])
     tasks, chosen, cells = benchmark.plan(a)
     todo = [(c, p) for c, p in ((c, grid_cells.plan_cell(c)) for c in cells) if p["argv"]]
-    estimates, _, failures = benchmark.calibrate(a, tasks, todo, run=fake_run)
+    estimates, _, failures = estimate.calibrate(a, tasks, todo, run=fake_run)
     assert not failures and sorted(calls) == sorted([("td3", "pendulum", "td3-normal", 600),
                                                      ("td3", "pendulum", "td3-pink", 600),
                                                      ("td3", "reacher", "td3-normal", 600),

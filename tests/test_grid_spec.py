@@ -92,3 +92,28 @@ def test_a_study_refuses_an_option_that_would_change_it(capsys):
     assert "has no task 'pendulum'" in capsys.readouterr().err
     assert main(["no-such-study"]) == 2 and "unknown study 'no-such-study'" in capsys.readouterr().err
     assert main(["--list"]) == 0 and "table2-c" in capsys.readouterr().out
+
+
+def test_reproduce_estimates_its_cells_when_asked(tmp_path, capsys, monkeypatch):
+    """``--estimate`` with ``--dry-run``: every method calibrated on the calibration task, the other tasks scaled
+    by DDPG's Gaussian noise there (``experiments.grid.estimate``; a fake calibration here)."""
+    from experiments.grid import estimate
+
+    calls = []
+
+    def fake_run(spec, name, chunk_steps):
+        calls.append((spec.task, name))
+        return {"compile_seconds": 10.0, "seconds_per_step": 1e-3 * (2 if spec.task == "reacher" else 1),
+                "cpu_utilisation": 1.0, "seeds": spec.seeds}
+
+    monkeypatch.setattr(estimate, "calibration_run", fake_run)
+    argv = ["--tasks", "pendulum,reacher", "--methods", "meta-independent,ddpg-normal", "--steps", "6000",
+            "--runs-dir", str(tmp_path / "runs"), "--results-dir", str(tmp_path / "res"), "--dry-run"]
+    assert reproduce.main(argv) == 0 and not calls  # no estimate unless asked
+    capsys.readouterr()
+    assert reproduce.main(argv + ["--estimate", "--calibration-task", "pendulum"]) == 0
+    out = capsys.readouterr().out
+    assert sorted(calls) == [("pendulum", "ddpg-normal"), ("pendulum", "meta-independent"), ("reacher", "ddpg-normal")]
+    # pendulum: 10 s + 6,000 steps x 1 ms per method; reacher: the same, its steps twice pendulum's cost
+    assert "estimated total: 76 s CPU, 76 s wall" in out
+    assert out.count("estimated: ") == 4 and not (tmp_path / "runs").exists()

@@ -85,6 +85,9 @@ GRIDS = {"ddpg": ("meta-independent", "meta-variance", "ddpg-paramnoise", "ddpg-
          "td3": ("meta-independent", "td3-normal"),
          "sac": ("sac-meta", "sac-own")}
 STUDENT_BASELINES = {"td3": "td3-normal", "sac": "sac-own"}
+# Each student's Gaussian-noise exploration: what a grid's estimate scales one task's cost to another's by
+# (experiments.grid.estimate).
+GAUSSIAN = {"ddpg": "ddpg-normal", **STUDENT_BASELINES}
 # The exploration benchmark (experiments.benchmark): each student's strategies, its Gaussian-noise baseline
 # (STUDENT_BASELINES) first, every other one judged against it. TD3: Gaussian, OU, adaptive parameter noise,
 # colored noise, per-episode scales, the paper's teacher and the tuned teacher; SAC: its own policy with white
