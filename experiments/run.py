@@ -8,6 +8,7 @@ teacher) in one compiled program.
     python -m experiments.run --env=hopper --preset=modern --set ddpg.actor_lr=1e-3
     python -m experiments.run --resume runs/hopper-meta-modern-s0
     python -m experiments.run --resume runs/hopper-meta-modern-s0 --steps=990000   # extend the budget
+    python -m experiments.run --env=pendulum --wandb --wandb-project=my-project      # also to Weights & Biases
 
 Writes under ``--out`` (default ``runs/<env>-<method>-<preset>-s<seed>``, ``...-<preset>-mujoco-s<seed>``
 on MuJoCo's C engine, which ``--physics=auto``, the default, picks for a MuJoCo task on a CPU):
@@ -19,7 +20,9 @@ states of the exploring policy and the student, early and late, per seed),
 ``policy.npz`` (the deterministic actors, see ``metapg_jax.load_policy``),
 ``summary.json``; and prints the final evaluation return per seed and mean ± std. With
 ``--tensorboard`` also ``tensorboard/seed_<i>/`` (the numbers of metrics.jsonl and cycles.jsonl as
-TensorBoard scalars, one run per seed; ``tensorboard --logdir <out>/tensorboard``). The training itself is ``metapg_jax.host.driver.run``'s; this command parses, checks and
+TensorBoard scalars, one run per seed; ``tensorboard --logdir <out>/tensorboard``); with ``--wandb`` the same
+numbers, the config and the summary go to Weights & Biases, one W&B run per seed in one group (their ids in
+``wandb.json``). The training itself is ``metapg_jax.host.driver.run``'s; this command parses, checks and
 chooses the loggers.
 
 ``--resume RUN_DIR --steps=N`` with N above the stored budget *extends* the run (finished or
@@ -128,6 +131,15 @@ def build_parser() -> argparse.ArgumentParser:
                         "the stored run: a --resume may add or leave it out; a resume with it first drops "
                         "events past the checkpoint and writes the finished rows the event files lack (all "
                         "of them if the run had no --tensorboard)")
+    p.add_argument("--wandb", action="store_true",
+                   help="also log the run to Weights & Biases, one W&B run per seed in one group (as CleanRL's "
+                        "--track): its config, every number of metrics.jsonl and cycles.jsonl at env steps, the "
+                        "final summary. Needs the wandb extra; WANDB_MODE=offline keeps it on disk. Output only: a "
+                        "--resume with it continues the same W&B runs (ids in OUT/wandb.json) and logs what they lack")
+    p.add_argument("--wandb-project", default=None, help="with --wandb: the W&B project (default metapg-jax)")
+    p.add_argument("--wandb-entity", default=None, help="with --wandb: the W&B user or team (default: W&B's default)")
+    p.add_argument("--wandb-group", default=None,
+                   help="with --wandb: the W&B group of the seeds' runs (default: the output folder's name)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -142,6 +154,12 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
         from metapg_jax.host import tb_events
 
         tb_events.require_tensorboard()
+    if not args.wandb and (args.wandb_project or args.wandb_entity or args.wandb_group):
+        raise ValueError("--wandb-project, --wandb-entity and --wandb-group need --wandb")
+    if args.wandb:
+        from metapg_jax.host import wandb_runs
+
+        wandb_runs.require_wandb()
     if args.resume:
         out = args.resume
         cfg, a, extend_from = resume_args(args, out)
@@ -188,23 +206,26 @@ def main(argv: list[str] | None = None) -> int:
         import jax
 
         jax.config.update("jax_debug_nans", True)
+    wandb = {"project": args.wandb_project, "entity": args.wandb_entity, "group": args.wandb_group} \
+        if args.wandb else None
     return run(cfg, a, out, trainer=trainer, resume=resume, overwrite=args.overwrite, plot=not args.no_plot,
                quiet=args.quiet, checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes,
-               extend_from=extend_from, tensorboard=args.tensorboard,
+               extend_from=extend_from, tensorboard=args.tensorboard, wandb=wandb,
                restart=restart_command("experiments.run", argv))
 
 
 def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
         plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0,
-        extend_from: int | None = None, tensorboard: bool = False, restart: str | None = None,
-        trainer=None) -> int:
+        extend_from: int | None = None, tensorboard: bool = False, wandb: dict | None = None,
+        restart: str | None = None, trainer=None) -> int:
     """Trains the run (``prepare``'s outputs) with the command's loggers and files (``driver.run``); returns the exit
-    status. ``restart``: the command that starts it again (printed if it is stopped before its first checkpoint);
-    ``trainer``: the config's (``make_train``), if built already."""
-    from metapg_jax.host import driver, loggers, tb_events
+    status. ``wandb``: ``wandb_runs.WandB``'s options (None: no W&B); ``restart``: the command that starts it again
+    (printed if it is stopped before its first checkpoint); ``trainer``: the config's (``make_train``), if built
+    already."""
+    from metapg_jax.host import driver, loggers, tb_events, wandb_runs
 
     name = run_label(cfg)
-    reports = [*([tb_events.TensorBoard()] if tensorboard else []),
+    reports = [*([tb_events.TensorBoard()] if tensorboard else []), *([wandb_runs.WandB(**wandb)] if wandb else []),
                *([] if quiet else [loggers.ProgressBar(name)])]  # the bar last: its rates start after the others'
 
     def finish(state, record: dict) -> dict:

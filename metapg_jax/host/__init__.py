@@ -16,5 +16,6 @@ imports this package (``tests/test_imports.py``):
 * ``driver``: the training driver (a config, its run args and a folder in; a trained run folder out), used by
   ``experiments.run``, the grid engine and notebooks, and its ``Recorder`` (a chunk's rows to the files and the
   loggers), which ``experiments.sweep`` shares;
-* ``loggers``: the ``Logger`` interface the driver reports to, several as one, plain functions, the progress bar.
+* ``loggers``: the ``Logger`` interface the driver reports to, several as one, plain functions, the progress bar;
+* ``wandb_runs``: Weights & Biases, one W&B run per seed (``--wandb``; wandb is imported here only).
 """
