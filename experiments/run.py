@@ -8,6 +8,7 @@ teacher) in one compiled program.
     python -m experiments.run --env=hopper --preset=modern --set ddpg.actor_lr=1e-3
     python -m experiments.run --resume runs/hopper-meta-modern-s0
     python -m experiments.run --resume runs/hopper-meta-modern-s0 --steps=990000   # extend the budget
+    python -m experiments.run --env=pendulum --wandb --wandb-project=my-project      # also to Weights & Biases
 
 Writes under ``--out`` (default ``runs/<env>-<method>-<preset>-s<seed>``, ``...-<preset>-mujoco-s<seed>``
 on MuJoCo's C engine, which ``--physics=auto``, the default, picks for a MuJoCo task on a CPU):
@@ -19,7 +20,10 @@ states of the exploring policy and the student, early and late, per seed),
 ``policy.npz`` (the deterministic actors, see ``metapg_jax.load_policy``),
 ``summary.json``; and prints the final evaluation return per seed and mean ± std. With
 ``--tensorboard`` also ``tensorboard/seed_<i>/`` (the numbers of metrics.jsonl and cycles.jsonl as
-TensorBoard scalars, one run per seed; ``tensorboard --logdir <out>/tensorboard``).
+TensorBoard scalars, one run per seed; ``tensorboard --logdir <out>/tensorboard``); with ``--wandb`` the same
+numbers, the config and the summary go to Weights & Biases, one W&B run per seed in one group (their ids in
+``wandb.json``). The training itself is ``metapg_jax.host.driver.run``'s; this command parses, checks and
+chooses the loggers.
 
 ``--resume RUN_DIR --steps=N`` with N above the stored budget *extends* the run (finished or
 not) to N env steps per seed: it continues from the latest checkpoint and ends where a run started
@@ -45,21 +49,18 @@ from __future__ import annotations
 import argparse
 import os
 import re
-import shutil
 import sys
-import time
 
 import envs
 from metapg_jax import config as config_lib
 from metapg_jax import strategy
 from metapg_jax.host import compile_cache
-from metapg_jax.host.processes import barrier, maybe_initialize_distributed, to_host
-from metapg_jax.host.runner import ChunkLoop, restart_command
+from metapg_jax.host.processes import maybe_initialize_distributed
+from metapg_jax.host.runner import restart_command
 
 from experiments.training.args import (RUN_ARGS, check_devices, check_new_out, config_from_run_args, flags,
-                                       physics_label, preload_plugins, resolved_run_args, resume_args, run_args,
-                                       run_label)
-from experiments.training.finish import finalize, record_extension
+                                       preload_plugins, resolved_run_args, resume_args, run_args, run_label)
+from experiments.training.finish import finalize
 from experiments.training.memory import abstract_keys, check_fits, state_bytes
 
 
@@ -130,6 +131,15 @@ def build_parser() -> argparse.ArgumentParser:
                         "the stored run: a --resume may add or leave it out; a resume with it first drops "
                         "events past the checkpoint and writes the finished rows the event files lack (all "
                         "of them if the run had no --tensorboard)")
+    p.add_argument("--wandb", action="store_true",
+                   help="also log the run to Weights & Biases, one W&B run per seed in one group (as CleanRL's "
+                        "--track): its config, every number of metrics.jsonl and cycles.jsonl at env steps, the "
+                        "final summary. Needs the wandb extra; WANDB_MODE=offline keeps it on disk. Output only: a "
+                        "--resume with it continues the same W&B runs (ids in OUT/wandb.json) and logs what they lack")
+    p.add_argument("--wandb-project", default=None, help="with --wandb: the W&B project (default metapg-jax)")
+    p.add_argument("--wandb-entity", default=None, help="with --wandb: the W&B user or team (default: W&B's default)")
+    p.add_argument("--wandb-group", default=None,
+                   help="with --wandb: the W&B group of the seeds' runs (default: the output folder's name)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     return p
 
@@ -144,6 +154,12 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
         from metapg_jax.host import tb_events
 
         tb_events.require_tensorboard()
+    if not args.wandb and (args.wandb_project or args.wandb_entity or args.wandb_group):
+        raise ValueError("--wandb-project, --wandb-entity and --wandb-group need --wandb")
+    if args.wandb:
+        from metapg_jax.host import wandb_runs
+
+        wandb_runs.require_wandb()
     if args.resume:
         out = args.resume
         cfg, a, extend_from = resume_args(args, out)
@@ -190,184 +206,34 @@ def main(argv: list[str] | None = None) -> int:
         import jax
 
         jax.config.update("jax_debug_nans", True)
-    return run(cfg, a, out, trainer=trainer, resume=resume, overwrite=args.overwrite, plot=not args.no_plot, quiet=args.quiet,
-               checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes,
-               extend_from=extend_from, tensorboard=args.tensorboard,
+    wandb = {"project": args.wandb_project, "entity": args.wandb_entity, "group": args.wandb_group} \
+        if args.wandb else None
+    return run(cfg, a, out, trainer=trainer, resume=resume, overwrite=args.overwrite, plot=not args.no_plot,
+               quiet=args.quiet, checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes,
+               extend_from=extend_from, tensorboard=args.tensorboard, wandb=wandb,
                restart=restart_command("experiments.run", argv))
 
 
 def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
         plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0,
-        extend_from: int | None = None, tensorboard: bool = False, restart: str | None = None,
-        trainer=None) -> int:
-    """Trains the run (``prepare``'s outputs); returns the exit status. ``restart``: the command that
-    starts it again (printed if it is stopped before its first checkpoint); ``trainer``: the config's
-    (``make_train``), if built already."""
-    from metapg_jax.host.checkpoint import saved_steps
+        extend_from: int | None = None, tensorboard: bool = False, wandb: dict | None = None,
+        restart: str | None = None, trainer=None) -> int:
+    """Trains the run (``prepare``'s outputs) with the command's loggers and files (``driver.run``); returns the exit
+    status. ``wandb``: ``wandb_runs.WandB``'s options (None: no W&B); ``restart``: the command that starts it again
+    (printed if it is stopped before its first checkpoint); ``trainer``: the config's (``make_train``), if built
+    already."""
+    from metapg_jax.host import driver, loggers, tb_events, wandb_runs
 
-    def checkpointed() -> int | None:
-        done = saved_steps(os.path.join(out, "checkpoints"))
-        return done[-1] if done else None
-
-    chunk_loop = ChunkLoop("the run", checkpointed, cfg.num_chunks, cfg.run.eval_every,
-                      f"python -m experiments.run --resume {out}", restart or "")
-    with chunk_loop:  # a stop while compiling or in the loop: the stop line, chunk_loop.status
-        return _run(chunk_loop, cfg, a, out, resume=resume, overwrite=overwrite, plot=plot, quiet=quiet,
-                    checkpoint_every=checkpoint_every, checkpoint_minutes=checkpoint_minutes,
-                    extend_from=extend_from, tensorboard=tensorboard, trainer=trainer)
-    return chunk_loop.status
-
-
-def _run(chunk_loop: ChunkLoop, cfg: config_lib.Config, a: dict, out: str, resume: bool, overwrite: bool, plot: bool,
-         quiet: bool, checkpoint_every: int, checkpoint_minutes: float, extend_from: int | None, tensorboard: bool,
-         trainer) -> int:
-    import jax
-    import numpy as np
-    from jax.sharding import Mesh, NamedSharding, PartitionSpec
-
-    from metapg_jax import replay
-    from metapg_jax.host import metric_rows, provenance, runfiles, tb_events, terminal
-    from metapg_jax.host.checkpoint import Checkpointer
-    from metapg_jax.loop import checkpoint_shapes
-    from metapg_jax.seeds import SEED_AXIS
-    from metapg_jax.train import make_train, seed_keys, vmap_seeds
-
-    num_seeds, seed = a["seeds"], a["seed"]
-    main_process = jax.process_index() == 0
-    if not resume:
-        if overwrite and os.path.exists(out) and main_process:
-            shutil.rmtree(out)
-        os.makedirs(out, exist_ok=True)
-        if main_process:
-            runfiles.write_json_atomic(os.path.join(out, "config.json"), {
-                "config": config_lib.to_dict(cfg), "run_args": a,
-                "jax_version": jax.__version__, "backend": jax.default_backend(),
-                "devices": [str(d) for d in jax.devices()], **provenance.record()})
-    elif extend_from is not None and main_process:
-        record_extension(out, cfg, a, extend_from)
-    barrier("metapg-run-folder")  # process 0 has (re)made the folder before anyone writes into it
-
-    trainer = trainer or make_train(cfg)
-    keys = seed_keys(seed, num_seeds)
     name = run_label(cfg)
-    print(f"{name} ({cfg.preset} preset, {cfg.env.source} source, {physics_label(cfg)} physics): {num_seeds} seeds x "
-          f"{cfg.run.total_steps:,} env steps, {cfg.num_chunks} evaluations every {cfg.run.eval_every:,} steps "
-          f"({cfg.cycles_per_chunk} cycles of {cfg.steps_per_cycle} steps) on {jax.device_count()} "
-          f"{jax.default_backend()} device(s); output {out}", flush=True)
+    reports = [*([tb_events.TensorBoard()] if tensorboard else []), *([wandb_runs.WandB(**wandb)] if wandb else []),
+               *([] if quiet else [loggers.ProgressBar(name)])]  # the bar last: its rates start after the others'
 
-    # The seed axis is sharded over all devices (a no-op with one device).
-    seeds_sharding = NamedSharding(Mesh(np.array(jax.devices()), (SEED_AXIS,)), PartitionSpec(SEED_AXIS))
-    cache, cache_before = compile_cache.current(), compile_cache.counts()
-    t0 = time.perf_counter()
-    init_fn = jax.jit(vmap_seeds(trainer.init), out_shardings=seeds_sharding)
-    checkpointer = chunk_loop.keep(Checkpointer(os.path.join(out, "checkpoints")))
-    start = 0
-    if resume:
-        state, meta = checkpointer.restore(checkpoint_shapes(trainer, keys))
-        if state.buffer.capacity != cfg.buffer_capacity:
-            # Only min(1e6, budget) capacities grow, from a smaller budget below 1e6 that the buffer held
-            # whole: no transition was overwritten (checked), so growing equals the longer run's buffer.
-            if int(np.max(state.env_steps)) > state.buffer.capacity:
-                raise RuntimeError(f"checkpoint in {out} holds a replay buffer that has overwritten transitions; "
-                                   f"it cannot grow to {cfg.buffer_capacity:,}")
-            state = state.replace(buffer=replay.grow(state.buffer, cfg.buffer_capacity))
-        state = jax.device_put(state, seeds_sharding)
-        start = int(meta["chunks_done"])
-        first_cycle = start * cfg.cycles_per_chunk
-        if main_process:  # the files are process 0's
-            runfiles.truncate_jsonl(os.path.join(out, "metrics.jsonl"), lambda r: r["chunk"] < start)
-            runfiles.truncate_jsonl(os.path.join(out, "cycles.jsonl"), lambda r: r["cycle"] < first_cycle)
-        print(f"resumed after {start} of {cfg.num_chunks} chunks ({start * cfg.run.eval_every:,} env steps)",
-              flush=True)
-    else:
-        state = init_fn(keys)
-    chunk_fn = jax.jit(vmap_seeds(trainer.train_chunk), in_shardings=seeds_sharding,
-                       out_shardings=seeds_sharding, donate_argnums=0).lower(state).compile()
-    compile_s = time.perf_counter() - t0
-    buffer_mb = num_seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20
-    cache_note, cache_record = compile_cache.describe(cache, cache_before, compile_cache.counts())
-    print(f"compiled in {compile_s:.1f} s ({cache_note}); replay buffers {buffer_mb:,.0f} MiB", flush=True)
+    def finish(state, record: dict) -> dict:
+        return finalize(cfg, out, state, a["seeds"], plot=plot, extra=record)
 
-    def ckpt_meta():
-        return {"config": config_lib.to_dict(cfg), "run_args": a}
-
-    metrics_writer = chunk_loop.keep(runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl"))) if main_process else None
-    cycle_writer = (chunk_loop.keep(runfiles.JsonlWriter(os.path.join(out, "cycles.jsonl")))
-                    if cfg.explorer_spec.cycle_metrics and main_process else None)
-    tb_writer = None
-    if tensorboard and main_process:
-        tb_writer = chunk_loop.keep(tb_events.TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle,
-                                                             cycle_prefix=f"{cfg.run.method}/"))
-        if resume:  # the JSONL files end at the checkpoint now (truncated above)
-            cycles_path = os.path.join(out, "cycles.jsonl")
-            tb_writer.resume(runfiles.read_jsonl(os.path.join(out, "metrics.jsonl")),
-                             runfiles.read_jsonl(cycles_path) if os.path.exists(cycles_path) else [],
-                             start * cfg.run.eval_every)
-    progress = chunk_loop.keep(terminal.Progress(cfg.run.total_steps, num_seeds, name,
-                                                 disable=quiet or not main_process,
-                                                 initial=start * cfg.run.eval_every))  # rates: this call's steps only
-    t_train = t_chunk = time.perf_counter()  # t_chunk: when the previous chunk's rows were written
-
-    def record(chunk: int, metrics) -> int | None:
-        nonlocal t_chunk
-        bad = _first_nonfinite(metrics, chunk, cfg)
-        if bad is not None:
-            seed_i, step = bad
-            done = checkpointer.steps()
-            print(f"\nerror: non-finite parameters in seed {seed_i} by env step {step:,} (chunk {chunk}); "
-                  f"run stopped. Last good checkpoint: "
-                  f"{f'after chunk {done[-1]}' if done else 'none'} in {checkpointer.directory}. "
-                  f"Try --debug-nans or a smaller learning rate.", file=sys.stderr, flush=True)
-            return 3
-        if main_process:
-            now = time.perf_counter()
-            rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
-            metrics_writer.write(rows)
-            t_chunk = now
-            cycles = []
-            if cycle_writer is not None:
-                cycles = metric_rows.cycle_rows(metrics, cfg.explorer_spec.cycle_metrics, chunk * cfg.cycles_per_chunk)
-                cycle_writer.write(cycles)
-            if tb_writer is not None:
-                tb_writer.write(rows, cycles)
-        return None
-
-    def due(chunks_run: int, since_save: float) -> bool:
-        return chunks_run % checkpoint_every == 0 if checkpoint_every else since_save >= 60 * checkpoint_minutes
-
-    state, status, chunks_run = chunk_loop.run(
-        chunk_fn, state, start=start, fetch=to_host, record=record, progress=progress,
-        save=lambda done, s: checkpointer.save(done, s, ckpt_meta()), due=due,
-        interrupted=f"; continue with: python -m experiments.run --resume {out}")
-    chunk_loop.close()  # the files are complete before the summary reads them
-    if status:
-        return status
-    train_s = time.perf_counter() - t_train
-    state = to_host(state)  # a collective with several processes: every process takes part
-    if not main_process:
-        return 0
-    finalize(cfg, out, state, num_seeds, plot=plot, extra={
-        "compile_seconds": round(compile_s, 2), **cache_record,
-        "train_seconds": round(train_s, 2),
-        "env_steps_per_second_total": round(num_seeds * chunks_run * cfg.run.eval_every / max(train_s, 1e-9), 1),
-        "replay_mib": round(buffer_mb, 1), "peak_rss_mib": round(terminal.peak_rss_mib(), 1),
-        "devices": jax.device_count(), "backend": jax.default_backend(), "resumed_from_chunk": start,
-        **({"extended_from_steps": extend_from} if extend_from else {})})
-    return 0
-
-
-def _first_nonfinite(metrics, chunk: int, cfg: config_lib.Config):
-    """(seed, env step) of the first cycle whose parameters are non-finite, or None."""
-    import numpy as np
-
-    finite = np.asarray(metrics["cycle"]["finite"])  # (seeds, cycles)
-    if finite.all():
-        return None
-    cycles = np.where(~finite.all(0))[0]
-    c = int(cycles[0])
-    seed_i = int(np.where(~finite[:, c])[0][0])
-    step = (chunk * cfg.cycles_per_chunk + c + 1) * cfg.steps_per_cycle
-    return seed_i, step
+    return driver.run(cfg, a, out, loggers=reports, resume=resume, extend_from=extend_from, overwrite=overwrite,
+                      checkpoint_every=checkpoint_every, checkpoint_minutes=checkpoint_minutes, finalize=finish,
+                      trainer=trainer, label=name, restart=restart)
 
 
 if __name__ == "__main__":

@@ -250,21 +250,22 @@ def resume_command(out: str) -> str:
 
 def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, args, restart: str = "") -> int:
     """Trains one program group (resuming it from its checkpoint); returns the exit status. ``restart``:
-    the command that starts the sweep again (printed if it is stopped before any checkpoint)."""
+    the command that starts the sweep again (printed if it is stopped before any checkpoint). The training driver's
+    loop, recorder and loggers (``metapg_jax.host.driver``), around a program of settings x seeds of its own."""
     import jax
     import jax.numpy as jnp
-    import numpy as np
 
-    from metapg_jax.host import metric_rows, runfiles, terminal
+    from metapg_jax.host import runfiles
     from metapg_jax.host.checkpoint import Checkpointer
+    from metapg_jax.host.driver import Recorder, checkpoint_due
+    from metapg_jax.host.loggers import Loggers, ProgressBar
     from metapg_jax.seeds import seed_keys, vmap_seeds
     from metapg_jax.sweep import Sweep
 
     members, num_seeds = group["settings"], a["seeds"]
     cfg = configs[members[0]]
     checkpointer = Checkpointer(os.path.join(out, "groups", str(g), "checkpoints"))
-    done = checkpointer.steps()
-    start = done[-1] if done else 0
+    start = (checkpointer.steps() or [0])[-1]
     label = f"group {g + 1}: settings {', '.join(map(str, members))}" + (
         f" (batched: {', '.join(group['batched'])})" if group["batched"] else "")
     if start == cfg.num_chunks:
@@ -272,10 +273,6 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
         checkpointer.close()
         return 0
     resume = resume_command(out)
-
-    def checkpointed() -> int | None:
-        done = checkpointer.steps()
-        return done[-1] if done else None
 
     def line(stop: runner.Stopped, in_flight: int | None, checkpointed: int | None) -> str | None:
         if checkpointed or g == 0:
@@ -285,8 +282,8 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
                 if in_flight is not None else f"group {g + 1} had started no chunk")
         return f"stopped by {stop.who}: {lost} (no checkpoint yet); groups 1-{g} are done; continue with: {resume}"
 
-    chunk_loop = runner.ChunkLoop(f"group {g + 1}", checkpointed, cfg.num_chunks, cfg.run.eval_every, resume, restart,
-                             line=line)
+    chunk_loop = runner.ChunkLoop(f"group {g + 1}", lambda: (checkpointer.steps() or [None])[-1], cfg.num_chunks,
+                                  cfg.run.eval_every, resume, restart, line=line)
     with chunk_loop:  # a stop while compiling or in the loop: the stop line, chunk_loop.status
         chunk_loop.keep(checkpointer)
         sweep = Sweep(cfg, env, tuple(group["batched"]))
@@ -303,29 +300,30 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
         chunk_fn = jax.jit(vmap_seeds(sweep.train_chunk), donate_argnums=0).lower(state, values).compile()
         print(f"{label}: {len(members)} x {num_seeds} runs, compiled in {time.perf_counter() - t0:.1f} s"
               + (f", resumed after {start} of {cfg.num_chunks} chunks" if start else ""), flush=True)
-        writer = chunk_loop.keep(runfiles.JsonlWriter(os.path.join(out, "metrics.jsonl")))
-        progress = chunk_loop.keep(terminal.Progress(cfg.run.total_steps, len(members) * num_seeds, f"group {g + 1}",
-                                                  disable=args.quiet, initial=start * cfg.run.eval_every))
-        t_train = t_chunk = time.perf_counter()
-
-        def record(chunk: int, metrics) -> None:
-            nonlocal t_chunk
-            now = time.perf_counter()
-            rows = metric_rows.chunk_rows(metrics, chunk, now - t_train, now - t_chunk)
-            t_chunk = now
-            finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
-            for i, row in enumerate(rows):
-                row["setting"], row["seed"] = members[i // num_seeds], i % num_seeds
-                row["finite"] = bool(finite[i])
-            writer.write(rows)
-
+        bar = [] if args.quiet else [ProgressBar(f"group {g + 1}", runs=len(members) * num_seeds)]
+        reports = chunk_loop.keep(Loggers(bar))
+        reports.start(cfg, a, out, start)
+        recorder = chunk_loop.keep(Recorder(out, reports, columns=setting_columns(members, num_seeds)))
         _, status, _ = chunk_loop.run(
-            lambda s: chunk_fn(s, values), state, start=start, fetch=jax.device_get, record=record, progress=progress,
+            lambda s: chunk_fn(s, values), state, start=start, fetch=jax.device_get, record=recorder,
             save=lambda done, s: checkpointer.save(done, s, {"group": g, "settings": members}),
-            due=lambda _, since_save: since_save >= 60 * args.checkpoint_minutes,
-            interrupted=f" of group {g + 1}; continue with: {resume}")
+            due=checkpoint_due(0, args.checkpoint_minutes), interrupted=f" of group {g + 1}; continue with: {resume}")
         return status
     return chunk_loop.status
+
+
+def setting_columns(members: list[int], num_seeds: int):
+    """A group's ``Recorder`` columns: each row's setting and seed (rows are setting-major) and whether its
+    parameters stayed finite through the chunk."""
+    import numpy as np
+
+    def columns(rows: list[dict], metrics) -> list[dict]:
+        finite = np.asarray(metrics["cycle"]["finite"]).all(axis=1)
+        for i, row in enumerate(rows):
+            row["setting"], row["seed"], row["finite"] = members[i // num_seeds], i % num_seeds, bool(finite[i])
+        return rows
+
+    return columns
 
 
 def summary_rows(out: str, settings, configs) -> list[dict]:
@@ -385,37 +383,14 @@ def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
     runfiles.write_json_atomic(os.path.join(out, "summary.json"), {"final_definition": FINAL_DEFINITION,
                                                                     "settings": rows})
     if plot:
-        _plot(out, rows, fields)
+        from experiments.analysis.render.plots import plot_sweep
+
+        plot_sweep(rows, fields, os.path.join(out, "sweep.png"))
     best = next((e for e in rows if e.get("best")), None)
     print(f"summary: {out}/summary.md" + (f"; best: setting {best['setting']} "
                                            f"({', '.join(f'{k}={v}' for k, v in best['values'].items())}): "
                                            f"{fmt(best['mean'])} ± {fmt(best['std'])}" if best else ""), flush=True)
     return rows
-
-
-def _plot(out: str, rows: list[dict], fields: list[str]) -> None:
-    from experiments.analysis.render.figures import pyplot
-
-    plt = pyplot()
-    shown = [e for e in rows if "mean" in e]
-    if not shown:
-        return
-    fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(shown) + 2), 3.6), dpi=120)
-    x = range(len(shown))
-    lo = [e["mean"] - e["ci95"][0] if e.get("ci95") else 0.0 for e in shown]
-    hi = [e["ci95"][1] - e["mean"] if e.get("ci95") else 0.0 for e in shown]
-    ax.errorbar(x, [e["mean"] for e in shown], yerr=[lo, hi], fmt="o", capsize=3,
-                color="tab:red")
-    for i, e in zip(x, shown):
-        if e.get("best"):
-            ax.plot([i], [e["mean"]], "*", color="black", markersize=12)
-    ax.set_xticks(list(x))
-    ax.set_xticklabels(["\n".join(f"{v}" for v in e["values"].values()) for e in shown], fontsize=7)
-    ax.set_xlabel(" / ".join(fields), fontsize=8)
-    ax.set_ylabel("final return (mean, 95% CI)")
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "sweep.png"))
-    plt.close(fig)
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ import pytest
 
 from experiments import run
 from experiments.training import args as training_args
-from experiments.training.finish import record_extension
+from metapg_jax.host.driver import record_extension
 from tests.helpers import TINY_BUFFER, TINY_RUN
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

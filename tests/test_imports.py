@@ -7,7 +7,9 @@ import subprocess
 import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-HOST_ONLY = ("metapg_jax.host", "tqdm", "matplotlib", "tensorboardX", "orbax", "subprocess")
+HOST_ONLY = ("metapg_jax.host", "tqdm", "matplotlib", "tensorboardX", "wandb", "orbax", "subprocess")
+# The optional loggers' packages: imported by their host modules only (tb_events, wandb_runs), nowhere else.
+LOGGER_PACKAGES = ("tensorboardX", "wandb")
 # ``metapg_jax.load_policy``: the package's lazy alias (its ``__getattr__``), imported only when accessed;
 # the last test checks that building and tracing a program does not load it.
 ALIASES = {"metapg_jax/__init__.py": {"metapg_jax.host.policy", "metapg_jax.host.policy.load_policy"}}
@@ -39,6 +41,15 @@ def test_the_pure_library_imports_nothing_of_the_host_side():
     found = {f: [n for n in names if n not in ALIASES.get(f, ())] for f, names in found.items()}
     assert len(found) > 15 and {f for f in found if f.startswith("metapg_jax/host")} == set()
     assert {f: names for f, names in found.items() if names} == {}
+
+
+def test_only_the_host_package_imports_the_optional_loggers_packages():
+    files = [os.path.join(folder, f) for package in ("metapg_jax", "envs", "experiments", "tests")
+             for folder, dirs, names in os.walk(os.path.join(ROOT, package)) for f in names if f.endswith(".py")]
+    found = {os.path.relpath(path, ROOT) for path in files
+             if any(name.split(".")[0] in LOGGER_PACKAGES for name in _imports(path))}
+    assert {"metapg_jax/host/tb_events.py", "metapg_jax/host/wandb_runs.py"} <= found
+    assert {f for f in found if not f.startswith(("metapg_jax/host/", "tests/"))} == set()
 
 
 def test_the_host_package_is_seen_by_the_check():

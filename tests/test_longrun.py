@@ -14,7 +14,7 @@ import pytest
 
 from experiments import run
 from experiments.training.args import config_from_run_args
-from experiments.training.finish import record_extension
+from metapg_jax.host.driver import record_extension
 from metapg_jax import load_policy
 from metapg_jax.host.checkpoint import Checkpointer
 from tests import xla_flags

@@ -10,33 +10,25 @@ import pytest
 from metapg_jax.host import runner
 
 
-class _Progress:
-    def __init__(self):
-        self.steps = []
-
-    def update(self, env_steps, eval_returns):
-        self.steps.append(env_steps)
-
-
 def _chunk(state):
     """A fake compiled chunk: the state counts chunks; the metrics are what a real chunk returns to the host."""
     return state + 1, {"env_steps": np.full(2, 10 * (state + 1)), "eval_return": np.zeros((2, 3))}
 
 
 def test_the_chunk_loop_records_every_chunk_saves_on_its_cadence_and_at_the_end():
-    recorded, saved, progress = [], [], _Progress()
+    recorded, saved = [], []
     state, status, chunks_run = runner.run_chunks(
         _chunk, 2, start=2, num_chunks=7, signals=runner.Signals(), fetch=lambda m: m,
-        record=lambda chunk, m: recorded.append((chunk, int(m["env_steps"][0]))), progress=progress,
+        record=lambda chunk, m: recorded.append((chunk, int(m["env_steps"][0]))),
         save=lambda done, s: saved.append((done, s)), due=lambda run_here, since: run_here % 2 == 0, interrupted="")
     assert (state, status, chunks_run) == (7, 0, 5)
-    assert recorded == [(2, 30), (3, 40), (4, 50), (5, 60), (6, 70)] and progress.steps == [30, 40, 50, 60, 70]
+    assert recorded == [(2, 30), (3, 40), (4, 50), (5, 60), (6, 70)]
     assert saved == [(4, 4), (6, 6), (7, 7)]  # every 2 chunks run in this call, and the last
 
 
 def test_a_status_from_record_stops_before_the_chunk_is_saved_and_a_first_ctrl_c_after_it(capsys):
     saved = []
-    kw = dict(start=0, num_chunks=5, fetch=lambda m: m, progress=_Progress(), due=lambda *_: False,
+    kw = dict(start=0, num_chunks=5, fetch=lambda m: m, due=lambda *_: False,
               save=lambda done, s: saved.append(done), interrupted="; continue with: RESUME")
     _, status, chunks_run = runner.run_chunks(_chunk, 0, signals=runner.Signals(),
                                               record=lambda chunk, m: 3 if chunk == 1 else None, **kw)

@@ -129,12 +129,6 @@ def resolved_run_args(a: dict, cfg: config_lib.Config) -> dict:
     return {**a, "physics": cfg.env.physics}
 
 
-def physics_label(cfg: config_lib.Config) -> str:
-    if not envs.has_mujoco(cfg.env.name):
-        return "JAX"
-    return "MuJoCo C" if cfg.env.physics == "mujoco" else "MJX"
-
-
 def run_label(cfg: config_lib.Config) -> str:
     """E.g. 'pendulum meta/independent' or 'hopper ddpg/adaptive-param (td3)': the explorer's label, and the
     student where it is not the default one."""

@@ -1,33 +1,13 @@
-"""A run folder's files beyond the metrics: the record of a budget extension in ``config.json`` and, once
-the run has finished, ``summary.json`` (the tables' final return), the exported policies, the visited-state
-sample and the plots, with the end-of-run lines."""
+"""A finished run folder's files beyond the driver's record (``metapg_jax.host.driver``): ``summary.json`` (the
+tables' final return), the exported policies, the visited-state sample and the plots, with the end-of-run lines."""
 
 from __future__ import annotations
 
-import json
 import os
-import time
 
 from metapg_jax import config as config_lib
 
 from experiments.training.args import run_label
-
-
-def record_extension(out: str, cfg: config_lib.Config, a: dict, old_steps: int) -> None:
-    """Before an extension runs: config.json gets the new budget (so a plain ``--resume`` continues the
-    extension) and an ``extensions`` entry; the shorter run's summary is kept as ``summary_<steps>.json``."""
-    from metapg_jax.host import provenance, runfiles
-
-    path = os.path.join(out, "config.json")
-    with open(path) as f:
-        stored = json.load(f)
-    summary = os.path.join(out, "summary.json")
-    if os.path.exists(summary):
-        os.replace(summary, os.path.join(out, f"summary_{old_steps}.json"))
-    entry = {"from_steps": old_steps, "to_steps": cfg.run.total_steps,
-             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z"), **provenance.record()}
-    runfiles.write_json_atomic(path, {**stored, "config": config_lib.to_dict(cfg), "run_args": a,
-                                       "extensions": stored.get("extensions", []) + [entry]})
 
 
 def finalize(cfg: config_lib.Config, out: str, state, num_seeds: int, plot: bool = True, extra: dict | None = None):

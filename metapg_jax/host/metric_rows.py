@@ -7,6 +7,7 @@ The training program returns metrics per chunk (numpy, leading seed axis); nothi
 
 from __future__ import annotations
 
+import math
 from typing import Iterable
 
 import numpy as np
@@ -71,6 +72,21 @@ def cycle_rows(metrics: dict, names: Iterable[str], first_cycle: int) -> list[di
         {"seed": i, "cycle": first_cycle + c, **{n: json_number(cyc[n][i][c]) for n in names}}
         for i in range(num_seeds) for c in range(num_cycles)
     ]
+
+
+# Fields of the rows that are not metrics: which seed, which chunk or cycle, and the x axis.
+NOT_SCALARS = frozenset({"seed", "chunk", "cycle", "env_steps"})
+
+
+def scalars(row: dict) -> dict[str, float]:
+    """A row's metrics as the loggers plot them (TensorBoard, W&B): every numeric field but ``NOT_SCALARS``; None
+    (NaN or inf in the rows), NaN, booleans and non-numbers are left out."""
+    return {k: float(v) for k, v in row.items() if k not in NOT_SCALARS and _is_number(v)}
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_)) \
+        and math.isfinite(v)
 
 
 def training_seconds(rows: list[dict]) -> tuple[float | None, bool]:

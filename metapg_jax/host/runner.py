@@ -1,10 +1,10 @@
 """The host loop every command shares: a compiled chunk program run chunk by chunk, each chunk's metrics handed
-to the caller as they come, the progress bar advanced, checkpoints on a cadence, at the end and on a first Ctrl-C,
-and the one line that says what a stop lost and how to go on.
+to the caller as they come (who writes them and tells its loggers: ``driver.Recorder``), checkpoints on a cadence,
+at the end and on a first Ctrl-C, and the one line that says what a stop lost and how to go on.
 
-``experiments.run`` (one run) and ``experiments.sweep`` (one program group) each open a ``ChunkLoop`` before
-they compile and run their program through it; what differs between them (the rows they write, the NaN guard, what
-a checkpoint holds) is theirs, passed in as functions.
+The training driver (``driver.run``: one run) and ``experiments.sweep`` (one program group) each open a
+``ChunkLoop`` before they compile and run their program through it; what differs between them (the rows they write,
+the NaN guard, what a checkpoint holds) is theirs, passed in as functions.
 """
 
 from __future__ import annotations
@@ -141,16 +141,16 @@ def restart_command(module: str, argv: list[str] | None) -> str:
 
 
 def run_chunks(step: Callable[[Any], tuple[Any, Any]], state: Any, *, start: int, num_chunks: int, signals: Signals,
-               fetch: Callable[[Any], Any], record: Callable[[int, Any], int | None], progress: Any,
+               fetch: Callable[[Any], Any], record: Callable[[int, Any], int | None],
                save: Callable[[int, Any], None], due: Callable[[int, float], bool], interrupted: str) -> tuple[Any, int, int]:
     """Runs chunks ``start .. num_chunks - 1`` of a compiled program.
 
     Args:
       step: ``state -> (state, metrics)``, one chunk (the compiled program; it may donate ``state``).
       fetch: the chunk's metrics to NumPy on this host (after ``signals.wait``).
-      record: ``(chunk, metrics)``: writes what the caller keeps of a chunk; a non-zero return stops the loop
-        with that status before the chunk is checkpointed (the NaN guard's 3).
-      progress: a ``metapg_jax.host.terminal.Progress``, advanced after each chunk.
+      record: ``(chunk, metrics)``: writes what the caller keeps of a chunk and tells its loggers (the progress
+        bar too); a non-zero return stops the loop with that status before the chunk is checkpointed (the NaN
+        guard's 3).
       save: ``(chunks_done, state)``: a checkpoint; called after the last chunk, on a first Ctrl-C and when
         ``due(chunks run in this call, seconds since the last checkpoint)`` says so.
       interrupted: what follows "checkpointed after chunk N of M" in the line a first Ctrl-C prints (where,
@@ -168,7 +168,6 @@ def run_chunks(step: Callable[[Any], tuple[Any, Any]], state: Any, *, start: int
         status = record(chunk, metrics) or 0
         if status:
             break
-        progress.update(int(metrics["env_steps"][0]), metrics["eval_return"].mean(1))
         last = chunk + 1 == num_chunks
         if last or signals.requested or due(chunk + 1 - start, time.perf_counter() - last_save):
             save(chunk + 1, state)
@@ -184,7 +183,7 @@ def run_chunks(step: Callable[[Any], tuple[Any, Any]], state: Any, *, start: int
 class ChunkLoop:
     """A command's hold on one chunk loop, from before it compiles to its last checkpoint: the signal handlers
     (``Signals``), what must be closed when the loop ends (``keep``: the checkpointer, the metric writers, the
-    progress bar), and the one line a stop prints.
+    loggers), and the one line a stop prints.
 
     ``with chunk_loop:`` swallows a ``Stopped`` raised inside (while compiling or in the loop): what was kept is
     closed, the stop line is printed and ``status`` is 130 or 143. Code after the ``with`` block returns

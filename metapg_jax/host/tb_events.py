@@ -1,15 +1,15 @@
 """The rows of ``metrics.jsonl`` and ``cycles.jsonl`` as TensorBoard scalars (``--tensorboard``), written
-as TFRecord event files that a resumed run truncates to its checkpoint."""
+as TFRecord event files that a resumed run truncates to its checkpoint, and the run's logger that writes them."""
 
 from __future__ import annotations
 
-import math
 import os
 import struct
 import time
 from typing import Any, Iterable
 
-import numpy as np
+from metapg_jax.host.loggers import Logger, finished_rows
+from metapg_jax.host.metric_rows import scalars
 
 
 def require_tensorboard() -> None:
@@ -69,8 +69,8 @@ class TensorBoardWriter:
         for seed, items in events.items():
             writer = self._writer(seed)
             for step, prefix, row in sorted(items, key=lambda item: item[0]):  # stable: cycles first
-                values = [self._summary_pb2.Summary.Value(tag=prefix + k, simple_value=float(v))
-                          for k, v in row.items() if k not in _NOT_SCALARS and _is_number(v)]
+                values = [self._summary_pb2.Summary.Value(tag=prefix + k, simple_value=v)
+                          for k, v in scalars(row).items()]
                 if values:
                     writer.write_event(self._event_pb2.Event(wall_time=time.time(), step=step,
                                                              summary=self._summary_pb2.Summary(value=values)))
@@ -123,13 +123,28 @@ class TensorBoardWriter:
         self._writers = {}
 
 
-# Fields of the rows that are not metrics: which seed, which chunk or cycle, and the x axis.
-_NOT_SCALARS = frozenset({"seed", "chunk", "cycle", "env_steps"})
+class TensorBoard(Logger):
+    """A run's rows as TensorBoard scalars under ``<out>/tensorboard/seed_<i>/`` (``TensorBoardWriter``; cycle
+    rows tagged ``<method>/<name>``), flushed per chunk. A resumed run's event files are first cut back to its
+    checkpoint and given the finished rows they lack (``TensorBoardWriter.resume``)."""
 
+    def __init__(self):
+        self._writer: TensorBoardWriter | None = None
 
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, (bool, np.bool_)) \
-        and math.isfinite(v)
+    def start(self, cfg: Any, run_args: dict, out: str, resumed_from: int) -> None:
+        del run_args
+        self._writer = TensorBoardWriter(os.path.join(out, "tensorboard"), cfg.steps_per_cycle,
+                                         cycle_prefix=f"{cfg.run.method}/")
+        if resumed_from:
+            self._writer.resume(*finished_rows(out), resumed_from * cfg.run.eval_every)
+
+    def chunk(self, rows: list[dict], cycles: list[dict]) -> None:
+        self._writer.write(rows, cycles)
+
+    def close(self) -> None:
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
 
 
 def _event_files(folder: str) -> list[str]:

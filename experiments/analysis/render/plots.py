@@ -101,3 +101,30 @@ def plot_meta_rewards(panels: dict[tuple[str, str], dict[str, list[dict]]], path
     fig.tight_layout(rect=(0, legend / height, 1, 1))
     fig.savefig(path)
     plt.close(fig)
+
+
+def plot_sweep(rows: list[dict], fields: list[str], path: str) -> None:
+    """A sweep's final return per setting (``experiments.sweep.summary_rows``): the mean with its 95% CI, the best
+    setting starred, each setting labelled by its values of the swept ``fields``; nothing for no finished setting."""
+    from experiments.analysis.render.figures import pyplot
+
+    plt = pyplot()
+    shown = [e for e in rows if "mean" in e]
+    if not shown:
+        return
+    fig, ax = plt.subplots(figsize=(max(4.0, 0.6 * len(shown) + 2), 3.6), dpi=120)
+    x = range(len(shown))
+    lo = [e["mean"] - e["ci95"][0] if e.get("ci95") else 0.0 for e in shown]
+    hi = [e["ci95"][1] - e["mean"] if e.get("ci95") else 0.0 for e in shown]
+    ax.errorbar(x, [e["mean"] for e in shown], yerr=[lo, hi], fmt="o", capsize=3,
+                color="tab:red")
+    for i, e in zip(x, shown):
+        if e.get("best"):
+            ax.plot([i], [e["mean"]], "*", color="black", markersize=12)
+    ax.set_xticks(list(x))
+    ax.set_xticklabels(["\n".join(f"{v}" for v in e["values"].values()) for e in shown], fontsize=7)
+    ax.set_xlabel(" / ".join(fields), fontsize=8)
+    ax.set_ylabel("final return (mean, 95% CI)")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
