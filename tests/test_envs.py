@@ -29,7 +29,7 @@ def test_a_task_added_to_the_registry_alone_gets_its_schedule_budget_and_name_fr
     """One spec in ``envs.TASKS`` is the whole task: the config, Meta's schedule, the tables' name and the engine
     choice read it; no other module lists it."""
     from experiments.grid import methods as grid
-    from experiments.training.args import physics_label
+    from metapg_jax.host.driver import physics_label
     from metapg_jax.config import make_config, validate
 
     spec = dataclasses.replace(envs.TASKS["pendulum"], paper_budget=60_000, eval_every=6_000, display_name="Toy",

@@ -4,6 +4,7 @@ and final) and the coverage of the state space by each data source (``coverage.m
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from typing import Sequence
@@ -146,7 +147,6 @@ def coverage_rows(results: dict, tasks: Sequence[str], baseline: str = BASELINE)
 
     from experiments.analysis.render import figures
     from experiments.analysis.cells import thin_visits
-    from experiments.analysis.stats import bootstrap_difference, bootstrap_mean
 
     out = {"rows": [], "comparisons": []}
     for task in tasks:
@@ -240,3 +240,33 @@ def write_coverage(coverage: dict, out_dir: str, footer: str, preset: str, basel
 
 
 # ---------------------------------------------------------------------------------------------- README
+
+
+# -- bootstrap intervals of a mean and of a difference of means over seeds (the coverage table's) --------------
+
+def bootstrap_mean(values: Sequence[float], level: float = 0.95, reps: int = BOOTSTRAP_REPS,
+                   seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
+    """(mean, lo, hi): the mean of ``values`` (one per seed) and its percentile bootstrap interval over them
+    (seeded: the same values give the same interval); for paired differences, pass the per-seed differences."""
+    x = np.asarray(values, np.float64)
+    if x.size < 2:
+        return (float(x.mean()) if x.size else math.nan), math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    means = x[rng.integers(0, x.size, (reps, x.size))].mean(1)
+    lo, hi = np.percentile(means, [50 * (1 - level), 50 * (1 + level)])
+    return float(x.mean()), float(lo), float(hi)
+
+
+def bootstrap_difference(a: Sequence[float], b: Sequence[float], level: float = 0.95, reps: int = BOOTSTRAP_REPS,
+                         seed: int = BOOTSTRAP_SEED) -> tuple[float, float, float]:
+    """(mean(a) − mean(b), lo, hi): the difference of two independent groups' means (one value per seed) and its
+    percentile bootstrap interval, each group's seeds resampled on their own (seeded)."""
+    a, b = np.asarray(a, np.float64), np.asarray(b, np.float64)
+    diff = float(a.mean() - b.mean())
+    if a.size < 2 or b.size < 2:
+        return diff, math.nan, math.nan
+    rng = np.random.default_rng(seed)
+    reps_a = a[rng.integers(0, a.size, (reps, a.size))].mean(1)
+    reps_b = b[rng.integers(0, b.size, (reps, b.size))].mean(1)
+    lo, hi = np.percentile(reps_a - reps_b, [50 * (1 - level), 50 * (1 + level)])
+    return diff, float(lo), float(hi)
