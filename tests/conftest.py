@@ -44,6 +44,18 @@ FIRST = ("test_ray.py", "test_multiprocess.py", "test_envs_mujoco.py", "test_lon
          "test_notebooks.py", "test_physics.py", "test_reproduce.py", "test_train.py", "test_td3.py", "test_sweep.py", "test_plugins.py")
 
 
+# (test file name, marked slow) of every test collected, before -m or -k deselected any (tests/test_tiers.py).
+_COLLECTED: list = []
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest's own hook deselects by -m and -k
 def pytest_collection_modifyitems(session, config, items):
+    _COLLECTED[:] = [(item.path.name, item.get_closest_marker("slow") is not None) for item in items]
     rank = {name: i for i, name in enumerate(FIRST)}
     items.sort(key=lambda item: rank.get(item.path.name, len(FIRST)))  # stable: the rest keep their order
+
+
+@pytest.fixture
+def collected_tests() -> list:
+    """(test file name, marked slow) of every test this pytest process collected, -m and -k aside."""
+    return list(_COLLECTED)

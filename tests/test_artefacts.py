@@ -67,7 +67,13 @@ def _compare(names, out, committed: str, folder: str) -> int:
     return compared
 
 
-@pytest.mark.parametrize("folder", list(BUILDS), ids=["paper", "modern", "mujoco", "td3", "tuned"])
+def _slow_but(folders, ids, fast):
+    """The folders as parameters, each marked slow but ``fast``, the smallest of its builder's: the fast tier
+    (-m "not slow", tests/test_tiers.py) rebuilds one folder of each builder."""
+    return [pytest.param(folder, id=i, marks=() if i == fast else pytest.mark.slow) for folder, i in zip(folders, ids)]
+
+
+@pytest.mark.parametrize("folder", _slow_but(BUILDS, ["paper", "modern", "mujoco", "td3", "tuned"], "mujoco"))
 def test_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
     results_dir, preset = BUILDS[folder]
     committed = os.path.join(ROOT, folder)
@@ -101,8 +107,8 @@ BENCHMARK_BUILDS = ("results/exploration", "results/first-look", "results/learne
                     *(f"results/learned/lookahead/steps-{n}" for n in (125, 25, 10)))
 
 
-@pytest.mark.parametrize("folder", BENCHMARK_BUILDS, ids=["exploration", "first-look", "screen", "screen-sac",
-                                                          "judgement", "lookahead-125", "lookahead-25", "lookahead-10"])
+@pytest.mark.parametrize("folder", _slow_but(BENCHMARK_BUILDS, ["exploration", "first-look", "screen", "screen-sac", "judgement",
+                                                             "lookahead-125", "lookahead-25", "lookahead-10"], "lookahead-125"))
 def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, tmp_path, monkeypatch):
     from experiments.analysis import benchmark as bench_artefacts
     from experiments.analysis.render import benchmark as bench_report

@@ -146,6 +146,7 @@ def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_r
     assert not runs.joinpath("sac").exists()  # nothing ran
 
 
+@pytest.mark.slow
 def test_a_tiny_benchmark_runs_archives_skips_and_plans_the_resume(tmp_path, capsys):
     runs, results = tmp_path / "runs", tmp_path / "res"
     argv = ["--tasks", "pendulum", "--students", "td3", "--strategies", "td3-normal", "--seeds", "2", "--steps", "600",

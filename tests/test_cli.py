@@ -184,6 +184,7 @@ def test_a_run_too_large_for_memory_is_refused_before_compiling(tmp_path, capsys
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_sigterm_before_the_first_checkpoint_says_nothing_was_saved(tmp_path):
     """SIGTERM while the first chunk runs: exit 143 at once, with one line saying that nothing can be
     resumed and the command that starts the run again."""

@@ -77,6 +77,7 @@ def test_console_scripts_are_the_modules_main_functions():
         assert callable(getattr(importlib.import_module(module), func))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("example", ["explorer", "student"])
 def test_the_plugin_examples_of_the_readme_and_running_md_train(example, monkeypatch):
     import dataclasses

@@ -258,6 +258,7 @@ def _check_reset_noise(name, p):
             uniform(dv, s)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", list(CASES))
 def test_mjx_task(name):
     """Every check of one task on its probe. One test per task, not one per check: xdist hands consecutive
@@ -298,6 +299,7 @@ def test_hopper_health_matches_gymnasium():
         assert bool(env.is_healthy(Data)) == genv.is_healthy, (dq, dv)
 
 
+@pytest.mark.slow
 def test_brax_tasks_build_and_step(tmp_path, monkeypatch):
     """All five of brax's versions build on mjx (and write no MUJOCO_LOG.TXT into the working directory:
     brax's half_cheetah.xml has the deprecated settotalmass too); one is stepped under jit+vmap."""

@@ -26,7 +26,12 @@ CHECKED_ELSEWHERE = {
 }
 
 
-@pytest.mark.parametrize("name", sorted(set(golden.CASES) - set(CHECKED_ELSEWHERE)))
+# The fast tier (-m "not slow", tests/test_tiers.py) checks one case, DDPG with Gaussian noise, the simplest program.
+FAST_CASE = "pendulum-ddpg-normal"
+
+
+@pytest.mark.parametrize("name", [pytest.param(name, marks=() if name == FAST_CASE else pytest.mark.slow)
+                                  for name in sorted(set(golden.CASES) - set(CHECKED_ELSEWHERE))])
 def test_short_runs_give_the_stored_numbers(name):
     golden.assert_stored(name, golden.compute(name))
 

@@ -158,6 +158,7 @@ def test_the_env_state_carried_through_the_host_continues_bit_for_bit():
         np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
 
 
+@pytest.mark.slow
 def test_a_gym_task_trains_from_the_command_line_and_resumes_bit_for_bit(tmp_path):
     """experiments.run --env=gym:Walker2d-v5(...) (the C engine by default): a tiny TD3 run, extended by --resume
     from its checkpoint, equals the run started with the longer budget. config.json keeps the task's name

@@ -44,6 +44,7 @@ def growing_reference(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_resume_continues_bit_for_bit_without_duplicate_metrics(reference, tmp_path):
     out = str(tmp_path / "run")
     assert run.main(TINY + ["--steps=900", "--out", out]) == 0
@@ -56,6 +57,7 @@ def test_resume_continues_bit_for_bit_without_duplicate_metrics(reference, tmp_p
     assert_same_run(reference, out)
 
 
+@pytest.mark.slow
 def test_a_run_loaded_from_the_compile_cache_equals_a_compiled_one(reference, tmp_path, capsys):
     cache = tmp_path / "xla"
     outs = [str(tmp_path / f"run{i}") for i in range(2)]
@@ -108,6 +110,7 @@ def test_compile_cache_folder_choice(tmp_path, monkeypatch):
     assert compile_cache._max_size(str(tmp_path / "env")) == 1000
 
 
+@pytest.mark.slow
 def test_extending_a_finished_run_equals_the_longer_run(growing_reference, tmp_path):
     """600 steps (replay capacity 600), then --steps=900: the 900-step reference, bit for bit."""
     reference = growing_reference
@@ -143,6 +146,7 @@ def test_extending_a_finished_run_equals_the_longer_run(growing_reference, tmp_p
         np.testing.assert_array_equal(exported[k], short_policy[k], err_msg=k)
 
 
+@pytest.mark.slow
 def test_an_interrupted_extension_resumes_from_the_smaller_checkpoint(growing_reference, tmp_path):
     """The extension's config is stored before it trains: a plain --resume continues it, also from a
     checkpoint written with the smaller replay capacity."""
@@ -215,6 +219,7 @@ def test_resume_with_another_config_is_refused_naming_the_fields(reference, caps
     assert "no config.json" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_seed_results_do_not_depend_on_the_device_count(tmp_path, monkeypatch, capsys):
     # The same 2 seeds on 1 device (here) and on 2 devices (one each, a process of its own). Not bitwise:
     # XLA compiles the vmapped program for other batch shapes (1 or 2 seeds per device, or 4 seeds in
@@ -242,6 +247,7 @@ def test_seed_results_do_not_depend_on_the_device_count(tmp_path, monkeypatch, c
     assert not os.path.exists(tmp_path / "x")
 
 
+@pytest.mark.slow
 def test_nan_guard_names_the_seed_and_stops(tmp_path, capsys):
     """Also: ``--compile-cache off`` compiles without the persistent cache, and says so."""
     from metapg_jax.host import compile_cache
@@ -287,6 +293,7 @@ def test_export_without_a_checkpoint_fails_clearly_and_creates_nothing(tmp_path,
     assert not list(tmp_path.rglob("*.npz"))
 
 
+@pytest.mark.slow
 def test_exported_policy_reproduces_the_training_evaluation(reference):
     from metapg_jax import config as config_lib
     from metapg_jax.train import make_train, seed_keys

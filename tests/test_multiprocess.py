@@ -19,6 +19,7 @@ import sys
 import time
 
 import numpy as np
+import pytest
 
 from tests import xla_flags
 from tests.helpers import tiny_argv
@@ -81,6 +82,7 @@ def _policy(out):
         return {k: p[k] for k in p.files}
 
 
+@pytest.mark.slow
 def test_a_two_process_job_killed_mid_run_resumes_to_the_numbers_of_one_process_with_two_devices(tmp_path):
     """The job is killed (SIGKILL, process 1 first) once two checkpoints are written and started again with
     ``--resume``; its outputs, written by process 0 alone and covering every seed, equal bit for bit those

@@ -4,6 +4,7 @@ import os
 
 import pytest
 
+pytestmark = pytest.mark.slow  # a Jupyter kernel (tests/test_tiers.py)
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 

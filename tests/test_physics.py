@@ -204,6 +204,7 @@ TINY_IP = [*tiny_argv("ddpg", env="inverted_pendulum"), "--physics=mujoco", "--c
            "--compile-cache=off"]
 
 
+@pytest.mark.slow
 def test_c_engine_run_resumes_bit_for_bit_after_sigkill(tmp_path):
     full = sigkill_resume_and_compare(tmp_path, TINY_IP + ["--steps=1800"], chunks=6,
                                       resume_args=["--compile-cache=off"])

@@ -116,6 +116,7 @@ def _rows(out, name="metrics.jsonl"):
     return [json.loads(line) for line in open(os.path.join(out, name))]
 
 
+@pytest.mark.slow
 @pytest.mark.usefixtures("clean_registries")
 def test_a_plugin_explorer_and_student_train_through_the_cli_and_resume(tmp_path):
     from metapg_jax import load_policy

@@ -14,6 +14,7 @@ import pytest
 
 ray = pytest.importorskip("ray")
 psutil = pytest.importorskip("psutil")
+pytestmark = pytest.mark.slow  # all Ray (tests/test_tiers.py)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 TINY = ["--seeds", "2", "--steps", "1500", "--set", "run.eval_every=300", "--set", "ddpg.hidden=16,16",

@@ -57,6 +57,7 @@ def test_reproduce_checks_every_cell_before_the_first_runs(tmp_path, capsys):
     assert "grid: 1 skipped, 1 would new" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     runs, results = tmp_path / "runs", tmp_path / "results"
     argv = ["--tasks", "pendulum", "--methods", "meta-independent,ddpg-paramnoise", "--seeds", "2", "--steps", "600",

@@ -239,6 +239,7 @@ def test_policy_export_round_trip_gives_tanh_of_the_mean(tmp_path):
         assert np.std(want) > 1e-2  # the means vary: the check is not of zeros
 
 
+@pytest.mark.slow
 def test_a_sac_run_with_colored_noise_resumes_bit_for_bit_after_sigkill(tmp_path):
     """SAC exploring with its own policy and pink sampling noise: the temperature, the student's key and the
     episode's colored sequence are in the checkpoint, so a run killed mid-way and resumed draws the same noise

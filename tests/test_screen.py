@@ -64,6 +64,7 @@ def test_each_variant_changes_the_config_it_names_and_nothing_else(task):
     assert all(screen.same_as(task, n, "mujoco") is None for n in changed)
 
 
+@pytest.mark.slow
 def test_tiny_screen_runs_skips_and_reports(tmp_path, capsys):
     runs, results = str(tmp_path / "runs"), str(tmp_path / "results")
     argv = ["--tasks=pendulum", "--variants=paper-teacher,ddpg-normal",

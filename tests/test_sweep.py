@@ -26,6 +26,7 @@ def _rows(path):
     return runfiles.read_jsonl(os.path.join(path, "metrics.jsonl"))
 
 
+@pytest.mark.slow
 def test_a_sweep_equals_separate_runs_of_its_settings(tmp_path):
     out = str(tmp_path / "sweep")
     assert sweep.main([*TINY, *GRID, "--out", out, "--no-plot"]) == 0
@@ -90,6 +91,7 @@ def test_bad_grids_are_refused_before_compiling(grid, message, tmp_path, capsys)
     assert not out.exists()
 
 
+@pytest.mark.slow
 def test_an_interrupted_sweep_resumes_to_the_numbers_of_an_uninterrupted_one(tmp_path, monkeypatch):
     grid = [*GRID, "--steps=900", "--no-plot"]
     whole, part = str(tmp_path / "whole"), str(tmp_path / "part")

@@ -90,6 +90,7 @@ def test_critic_loss_is_the_sum_of_both_critics_mse():
     np.testing.assert_allclose(float(aux["td_loss"]), want, rtol=1e-5)
 
 
+@pytest.mark.slow
 def test_td3_trains_as_the_student_of_the_noise_explorer_deterministically():
     """The same key twice gives the same numbers, the case's stored ones (tests/golden.py). (Meta's
     explorer: test_meta_on_td3_compiles_once_stays_finite_and_gives_its_stored_numbers.)"""
@@ -118,6 +119,7 @@ def test_modern_td3_preset_has_the_authors_settings():
         make_config("hopper", "ddpg", "modern", student="redq")
 
 
+@pytest.mark.slow
 def test_meta_on_td3_compiles_once_stays_finite_and_gives_its_stored_numbers():
     """TD3 trains as the student of the Meta explorer, deterministically (the same key twice), to the case's
     stored numbers (tests/golden.py). (Chunked equals the single scan whatever the student and explorer:
@@ -138,6 +140,7 @@ def test_meta_on_td3_compiles_once_stays_finite_and_gives_its_stored_numbers():
     assert np.all(np.isfinite(np.asarray(state.explorer.r_hat)))
 
 
+@pytest.mark.slow
 def test_meta_on_td3_resumed_gives_the_numbers_of_one_run(tmp_path):
     """From a checkpoint (the TD3 state's own key and update count included) to the same numbers bit for
     bit: a 600-step run extended to 900 steps equals a run started at 900. The command line stores the

@@ -88,6 +88,7 @@ def assert_events_match_jsonl(out, num_seeds, chunks):
         assert [s for s, _ in teacher["meta/meta_reward"]][1::2] == steps  # a chunk's last cycle ends at its eval
 
 
+@pytest.mark.slow
 def test_tensorboard_holds_the_jsonl_numbers_per_seed_and_a_resume_appends_once(tmp_path):
     pytest.importorskip("tensorboardX")
     out = str(tmp_path / "run")

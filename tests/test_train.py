@@ -35,6 +35,7 @@ def _program(case):
 SINGLE_SCAN = {"pendulum-ddpg-adaptive-param", "idp-meta-independent-mujoco", "pendulum-own-pink-sac"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["pendulum-ddpg-adaptive-param", "pendulum-meta-independent",
                                   "idp-meta-independent-mujoco", "pendulum-own-pink-sac"])
 def test_chunked_and_single_scan_agree(case):
@@ -69,6 +70,7 @@ def test_chunked_and_single_scan_agree(case):
                  state.student.actor, full_state.student.actor)
 
 
+@pytest.mark.slow
 def test_seeds_differ_and_do_not_depend_on_seed_count():
     trainer, train = _program("pendulum-ddpg-adaptive-param")
     s2, _ = train(seed_keys(0, 2))
@@ -107,6 +109,7 @@ def _random_policy_return(seeds=8):
     return float(ret.mean())
 
 
+@pytest.mark.slow
 def test_ddpg_learns_pendulum():
     returns = _learning_run("ddpg", 9000)
     baseline = _random_policy_return()
@@ -116,6 +119,7 @@ def test_ddpg_learns_pendulum():
     assert returns[:, -1].mean() > returns[:, 0].mean()
 
 
+@pytest.mark.slow
 def test_meta_learns_pendulum():
     returns = _learning_run("meta", 15000)
     baseline = _random_policy_return()
@@ -131,6 +135,7 @@ def test_any_over_seeds_reduces_the_named_seed_axis_only():
     assert not bool(jax.jit(any_over_seeds)(jnp.array(False)))  # no vmap at all
 
 
+@pytest.mark.slow
 def test_param_noise_episode_starts_same_numbers_with_named_seed_axis():
     # vmap_seeds draws a new actor perturbation only on steps where some seed starts an episode;
     # a plain vmap draws it at every step and keeps it where an episode starts. Same numbers.

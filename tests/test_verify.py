@@ -6,6 +6,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 from experiments import verify
 from experiments.analysis import cells
 from tests.helpers import TINY_BUFFER, TINY_RUN
@@ -15,6 +17,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 ARGV = [*TINY_RUN, *TINY_BUFFER, "--steps=600", "--no-plot", "--quiet"]
 
 
+@pytest.mark.slow
 def test_a_cell_rerun_at_its_commit_is_reproduced_and_a_changed_one_differs(tmp_path):
     # The stored cell: the command run from a clean checkout of HEAD (what verify runs too), recorded as
     # reproduce does, so the test holds whatever the working tree has uncommitted.
