@@ -50,6 +50,7 @@ def _jsonl(path):
     return [json.loads(line) for line in open(path)]
 
 
+@pytest.mark.slow
 def test_the_driver_reports_a_run_to_its_loggers_and_the_command_line_resumes_it(tmp_path):
     cfg, a = run_args(600)
     out = str(tmp_path / "run")

@@ -3,6 +3,8 @@ grid refuses a finished cell stored with other seeds."""
 
 import os
 
+import pytest
+
 from experiments import reproduce
 from experiments import run as run_lib
 from experiments.grid.methods import METHODS, STUDENT_OF
@@ -67,6 +69,7 @@ def test_a_finished_cell_stored_with_other_seeds_stops_the_grid_before_anything_
     assert "paper/pendulum/ddpg-normal" in err and "stored with seeds 8 (requested 10), seed 0 (requested 4000)" in err
 
 
+@pytest.mark.slow
 def test_every_study_resolves_every_stored_cell_of_its_grid(capsys, tmp_path):
     """``python -m experiments.grid <study> --dry-run`` for every named study: its settings are options of its kind,
     and every cell of a finished study resolves to its archived copy (nothing would run). ``table2-c`` runs over

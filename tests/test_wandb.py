@@ -112,6 +112,7 @@ def merged(calls, drop=("wall_time", "chunk_seconds")):
     return history
 
 
+@pytest.mark.slow
 def test_a_run_logs_one_wandb_run_per_seed_and_a_resume_continues_them(offline, tmp_path, capsys):
     out = str(tmp_path / "run")
     assert run.main([*TINY, "--steps=600", "--out", out, "--wandb", "--wandb-group", "tiny"]) == 0
@@ -148,6 +149,7 @@ def test_a_run_logs_one_wandb_run_per_seed_and_a_resume_continues_them(offline, 
         assert merged(calls) == merged([(None, expected_history(out, seed), None, None)])
 
 
+@pytest.mark.slow
 def test_a_run_without_wandb_resumed_with_it_logs_every_finished_chunk(offline, tmp_path):
     out = str(tmp_path / "run")
     assert run.main([*TINY, "--steps=600", "--out", out]) == 0
