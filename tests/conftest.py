@@ -38,10 +38,11 @@ def _back_to_the_session_compile_cache():
     compile_cache.enable(compile_cache.resolve(None))
 
 
-# The modules whose tests take longest on 2 cores (measured with --durations), started first so that the
+# The modules whose tests take longest on 2 cores in either tier (measured with --durations), started first so that the
 # short tests fill in around them and no worker is left with a long test at the end.
 FIRST = ("test_ray.py", "test_multiprocess.py", "test_envs_mujoco.py", "test_longrun.py", "test_screen.py",
-         "test_notebooks.py", "test_physics.py", "test_reproduce.py", "test_train.py", "test_td3.py", "test_sweep.py", "test_plugins.py")
+         "test_notebooks.py", "test_physics.py", "test_reproduce.py", "test_train.py", "test_td3.py", "test_sweep.py", "test_plugins.py",
+         "test_meta.py", "test_sac.py", "test_strategy.py")
 
 
 # (test file name, marked slow) of every test collected, before -m or -k deselected any (tests/test_tiers.py).

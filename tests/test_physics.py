@@ -215,8 +215,9 @@ def test_c_engine_run_resumes_bit_for_bit_after_sigkill(tmp_path):
 # Inverted Double Pendulum trains Meta and DDPG on the C engine in tests/test_train.py and tests/test_golden.py,
 # Inverted Pendulum DDPG above; the training program is the same for every task but for the env's sizes, and
 # Meta's cycle steps the env through the same calls as DDPG's (reset, step; on the C engine one host call per
-# step), so the other tasks train DDPG, a smaller program.
-@pytest.mark.parametrize("task", ["hopper", "halfcheetah", "reacher"])
+# step), so the other tasks train DDPG, a smaller program. (The fast tier, -m "not slow", trains Reacher's.)
+@pytest.mark.parametrize("task", [pytest.param("hopper", marks=pytest.mark.slow),
+                                  pytest.param("halfcheetah", marks=pytest.mark.slow), "reacher"])
 def test_the_other_mujoco_tasks_train_a_tiny_ddpg_run_on_the_c_engine(task):
     """A smoke test per task: one compiled program, finite state, the student updated."""
     import chex

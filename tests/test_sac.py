@@ -172,6 +172,7 @@ def test_sac_group_defaults_overrides_and_checks():
         assert "\n" not in str(err.value)
 
 
+@pytest.mark.slow
 def test_meta_on_sac_compiles_once_and_trains_two_chunks_with_finite_numbers():
     """The teacher of Algorithm 1 on the SAC student: its look-ahead copy is a SAC state, D1 and the evaluation
     run tanh(mean). The seed-vmapped train_chunk is traced and compiled once for both chunks."""
