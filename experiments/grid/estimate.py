@@ -5,8 +5,8 @@ one task (its real config otherwise: seeds, networks, replay capacity; a cold co
 work left runs its student's Gaussian noise (``GAUSSIAN``) the same way; a cell's estimate is the calibration
 task's compile time and per-step time of its method, scaled by the task's over the calibration task's for the
 Gaussian noise, times its remaining steps; CPU time is that times the method's CPU utilisation during its
-calibration. A method is calibrated once, as its cell on the first task in the plan has it (a screen variant whose
-change differs by task is timed in that task's form). The calibration runs share the machine with whatever else
+calibration. A method is calibrated once, on the calibration task in the form of its last cell in the plan (a screen variant
+whose change differs by task is timed in one task's form). The calibration runs share the machine with whatever else
 runs on it: an estimate made beside other work leans high."""
 
 from __future__ import annotations
