@@ -47,15 +47,10 @@ def add_grid_options(p: argparse.ArgumentParser, *, seeds: int, seed: int, steps
 def check_grid_options(a: argparse.Namespace, trains: bool) -> None:
     """``ValueError`` (one line) for a bad shared option; ``trains``: the command will run cells (not a dry run or a
     report), so the launcher's and TensorBoard's packages must be there."""
-    if a.seeds <= 0:
-        raise ValueError(f"--seeds must be positive, got {a.seeds}")
-    if a.steps is not None and a.steps <= 0:
-        raise ValueError(f"--steps must be positive, got {a.steps}")
-    if not 0 <= a.seed < 2 ** 32:
-        raise ValueError(f"--seed must be in [0, 2**32), got {a.seed}")
-    for item in a.overrides:
-        if "=" not in item:
-            raise ValueError(f"--set expects GROUP.FIELD=VALUE, got {item!r}")
+    from experiments.training import args as training_args
+
+    training_args.check_counts(a.seeds, a.seed, a.steps)
+    training_args.parse_overrides(a.overrides)  # GROUP.FIELD=VALUE each
     if a.ray_cpus_per_cell < 0 or a.ray_gpus_per_cell < 0 or a.ray_retries < 0:
         raise ValueError("--ray-cpus-per-cell, --ray-gpus-per-cell and --ray-retries must be >= 0")
     if a.checkpoint_every < 0 or not a.checkpoint_minutes > 0:

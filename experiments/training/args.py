@@ -102,16 +102,21 @@ def import_plugins(names: list[str]) -> None:
                 raise ValueError(f"--plugin {name}: cannot import it: {err}") from None
 
 
+def check_counts(seeds: int, seed: int, steps: int | None) -> None:
+    """One-line ``ValueError`` for a non-positive seed count or budget, or a base seed outside [0, 2**32)."""
+    if seeds <= 0:
+        raise ValueError(f"--seeds must be positive, got {seeds}")
+    if steps is not None and steps <= 0:
+        raise ValueError(f"--steps must be positive, got {steps}")
+    if not 0 <= seed < 2 ** 32:
+        raise ValueError(f"--seed must be in [0, 2**32), got {seed}")
+
+
 def config_from_run_args(a: dict) -> config_lib.Config:
     """Builds and validates the config; raises ValueError with one line on bad input. ``a["physics"]``
     may be 'auto' (make_config resolves it; ``resolved_run_args`` stores the engine it chose)."""
     import_plugins(a.get("plugins") or [])
-    if a["seeds"] <= 0:
-        raise ValueError(f"--seeds must be positive, got {a['seeds']}")
-    if a["steps"] is not None and a["steps"] <= 0:
-        raise ValueError(f"--steps must be positive, got {a['steps']}")
-    if not 0 <= a["seed"] < 2 ** 32:
-        raise ValueError(f"--seed must be in [0, 2**32), got {a['seed']}")
+    check_counts(a["seeds"], a["seed"], a["steps"])
     shortcuts = flags()
     for flag, (owners, _) in shortcuts.items():
         if a.get(flag) is not None and a["method"] not in owners:

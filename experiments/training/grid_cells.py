@@ -109,8 +109,9 @@ def validate_cells(cells: list[Cell]) -> None:
     (``ValueError``, one line naming the cell) rather than after the cells before it have run."""
     for cell in cells:
         for path in (run_dir(cell), archived_dir(cell)):
-            if os.path.exists(os.path.join(path, "summary.json")) and stored_elsewhere(cell, path):
-                raise ValueError(f"{cell.tag}: {path} holds a finished run {stored_elsewhere(cell, path)}; move it "
+            why = os.path.exists(os.path.join(path, "summary.json")) and stored_elsewhere(cell, path)
+            if why:
+                raise ValueError(f"{cell.tag}: {path} holds a finished run {why}; move it "
                                  "away or give the grid other --runs-dir/--results-dir")
         if finished_at_budget(cell):
             continue  # skipped whatever its config would be at this budget
@@ -195,8 +196,9 @@ def plan_cell(cell: Cell) -> dict:
                     f"to extend it from is stored; delete it to rerun)")
         else:
             note = f" (stored budget {s['env_steps']:,} is above the requested {wanted:,}; delete it to rerun)"
-        if stored_elsewhere(cell, out):
-            note += f" (not this grid's run: {stored_elsewhere(cell, out)})"
+        why = stored_elsewhere(cell, out)
+        if why:
+            note += f" (not this grid's run: {why})"
         from experiments.analysis import stats
         from metapg_jax.host import metric_rows, runfiles
 
