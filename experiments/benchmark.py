@@ -48,7 +48,6 @@ import argparse
 import os
 import re
 import sys
-import time
 
 import envs
 from experiments import reproduce
@@ -57,8 +56,8 @@ from experiments.analysis.render import benchmark as bench_report
 from experiments.grid import methods as grid
 from experiments.grid.methods import (LEARNED, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, baseline_for,
                                     task_folder)
-from experiments.grid import estimate
-from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
+from experiments.grid import engine
+from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec
 from experiments.grid.estimate import add_estimate_options, check_estimate_options
 from experiments.training import grid_cells
 
@@ -162,8 +161,6 @@ def plan(a: argparse.Namespace) -> tuple[list[str], list[artefacts.Entry], list[
     return tasks, chosen, cells
 
 
-# ---------------------------------------------------------------------------------------------- calibration
-
 
 def main(argv: list[str] | None = None) -> int:
     return run_parsed(build_parser().parse_args(argv), sys.argv[1:] if argv is None else list(argv))
@@ -172,33 +169,29 @@ def main(argv: list[str] | None = None) -> int:
 def run_parsed(a: argparse.Namespace, argv: list[str]) -> int:
     """``main`` after parsing (``experiments.grid`` runs a named study through it); ``argv``: what the manifest
     records as the command's options."""
-    try:
-        tasks, chosen, cells = plan(a)
-    except ValueError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
+    return engine.run(a, lambda: grid_plan(a, argv), report_only=a.artefacts_only)
+
+
+def grid_plan(a: argparse.Namespace, argv: list[str]) -> engine.GridPlan:
+    """The benchmark's cells (``plan``) and its report (``experiments.analysis.render.benchmark.build``)."""
+    tasks, chosen, cells = plan(a)
     per = ", ".join(f"{STUDENT_NAMES.get(s, s)}: {sum(e.student == s for e in chosen)}"
                     for s in dict.fromkeys(e.student for e in chosen))
-    print(f"exploration benchmark {a.name!r}: {len(tasks)} tasks x {len(chosen)} entries ({per}) = {len(cells)} "
-          f"cells of {a.seeds} seeds, {a.steps:,} env steps per seed, {a.physics} physics, base seed {a.seed}; "
-          f"cells in {a.runs_dir}/<student>/{artefacts.PRESET}/<task>/<method>, results in {a.results_dir}",
-          flush=True)
-    if a.dry_run:
-        return estimate.dry_run(a, tasks, cells)
-    t0, status = time.perf_counter(), 0
-    if not a.artefacts_only:
-        status, report = launch(cells, a, "benchmark")
-    options = {"name": a.name, "students": list(dict.fromkeys(e.student for e in chosen)),
-               "strategies": [e.key for e in chosen], "baselines": artefacts.baselines_of(chosen), "seeds": a.seeds,
-               "seed": a.seed, "steps": a.steps,
-               "physics": a.physics, "overrides": a.overrides,
-               "argv": argv}
-    manifest = bench_report.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
-                               extra_provenance={"benchmark_wall_seconds": round(time.perf_counter() - t0, 2)})
-    print(f"artefacts: {len(manifest['files'])} files in {a.results_dir} ({len(manifest['cells'])} stored cells, "
-          f"{len(manifest['not_run'])} not run)", flush=True)
-    return status
+    banner = (f"exploration benchmark {a.name!r}: {len(tasks)} tasks x {len(chosen)} entries ({per}) = {len(cells)} "
+              f"cells of {a.seeds} seeds, {a.steps:,} env steps per seed, {a.physics} physics, base seed {a.seed}; "
+              f"cells in {a.runs_dir}/<student>/{artefacts.PRESET}/<task>/<method>, results in {a.results_dir}")
 
+    def report(wall_seconds: float) -> None:
+        options = {"name": a.name, "students": list(dict.fromkeys(e.student for e in chosen)),
+                   "strategies": [e.key for e in chosen], "baselines": artefacts.baselines_of(chosen),
+                   "seeds": a.seeds, "seed": a.seed, "steps": a.steps, "physics": a.physics,
+                   "overrides": a.overrides, "argv": argv}
+        manifest = bench_report.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
+                                      extra_provenance={"benchmark_wall_seconds": wall_seconds})
+        print(f"artefacts: {len(manifest['files'])} files in {a.results_dir} ({len(manifest['cells'])} stored cells, "
+              f"{len(manifest['not_run'])} not run)", flush=True)
+
+    return engine.GridPlan(cells, tasks, report, word="benchmark", banner=banner)
 
 if __name__ == "__main__":
     sys.exit(main())

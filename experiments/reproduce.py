@@ -45,14 +45,13 @@ from __future__ import annotations
 
 import argparse
 import sys
-import time
 
 from experiments.artefacts import add_figure_options, build_all
 from experiments.analysis.cells import results_dir_for
 from experiments.grid import methods as grid
 from experiments.grid.methods import BASELINES, GRIDS, baseline_for, methods_for
-from experiments.grid import estimate
-from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
+from experiments.grid import engine
+from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec
 from experiments.grid.estimate import add_estimate_options, check_estimate_options
 from experiments.training import grid_cells
 
@@ -115,49 +114,43 @@ def main(argv: list[str] | None = None) -> int:
 def run_parsed(args: argparse.Namespace, argv: list[str]) -> int:
     """``main`` after parsing (``experiments.grid`` runs a named study through it); ``argv``: what the manifest
     records as the command's options."""
+    return engine.run(args, lambda: plan(args, argv), report_only=args.artefacts_only)
+
+
+def plan(args: argparse.Namespace, argv: list[str]) -> engine.GridPlan:
+    """The grid's cells (validated unless only the artefacts are rebuilt) and its report, Table 2's artefacts."""
     mujoco = args.physics == "mujoco"
     other = args.student != "ddpg"
     if args.runs_dir is None:
         args.runs_dir = f"runs/reproduce-{args.student}" if other else MUJOCO_RUNS if mujoco else "runs/reproduce"
     if args.results_dir is None:
         args.results_dir = f"results/{args.student}" if other else MUJOCO_RESULTS if mujoco else "results"
-    try:
-        tasks = parse_list(args.tasks, grid.tasks(), "task")
-        if mujoco and args.source != "gymnasium":
-            raise ValueError(f"--physics=mujoco steps gymnasium's models; source {args.source!r} has only MJX")
-        grid_methods = methods_for(args.student)
-        methods = parse_list(args.methods or ",".join(grid_methods), grid_methods, "method")
-        check_grid_options(args, trains=not args.artefacts_only and not args.dry_run)
-        placement = grid_run(args, args.runs_dir, args.results_dir, args.preset,
-                             baseline_for(args.preset, args.student))
-        spec = grid_spec(args, args.preset, args.student, args.source)
-        cells = [grid_cells.grid_cell(placement, spec, t, m) for t in tasks for m in methods]
-        check_estimate_options(args, tasks)
-        if not args.artefacts_only:
-            grid_cells.validate_cells(cells)
-    except ValueError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    t0 = time.perf_counter()
-    status, report = 0, {}
-    if args.dry_run and not args.no_calibrate:
-        return estimate.dry_run(args, tasks, cells)
+    tasks = parse_list(args.tasks, grid.tasks(), "task")
+    if mujoco and args.source != "gymnasium":
+        raise ValueError(f"--physics=mujoco steps gymnasium's models; source {args.source!r} has only MJX")
+    grid_methods = methods_for(args.student)
+    methods = parse_list(args.methods or ",".join(grid_methods), grid_methods, "method")
+    check_grid_options(args, trains=not args.artefacts_only and not args.dry_run)
+    placement = grid_run(args, args.runs_dir, args.results_dir, args.preset, baseline_for(args.preset, args.student))
+    spec = grid_spec(args, args.preset, args.student, args.source)
+    cells = [grid_cells.grid_cell(placement, spec, t, m) for t in tasks for m in methods]
+    check_estimate_options(args, tasks)
     if not args.artefacts_only:
-        status, report = launch(cells, args)
-    if args.dry_run:
-        return status
-    manifest = build_all(
-        args.runs_dir, args.results_dir, args.preset, embedding=args.embedding,
-        visitation_tasks=args.visitation_task, student=args.student,
-        extra_provenance={"reproduce_argv": argv,
-                          "requested": {"tasks": tasks, "methods": methods, "seeds": args.seeds, "seed": args.seed,
-                                        "steps": args.steps, "overrides": args.overrides},
-                          "grid_wall_seconds": round(time.perf_counter() - t0, 2)})
-    out = results_dir_for(args.results_dir, args.preset)
-    print(f"artefacts: {len(manifest['files'])} files in {out} ({len(manifest['cells'])} stored cells, "
-          f"{len(manifest['not_run'])} not run): {', '.join(manifest['files'])}", flush=True)
-    return status
+        grid_cells.validate_cells(cells)
 
+    def report(wall_seconds: float) -> None:
+        manifest = build_all(
+            args.runs_dir, args.results_dir, args.preset, embedding=args.embedding,
+            visitation_tasks=args.visitation_task, student=args.student,
+            extra_provenance={"reproduce_argv": argv,
+                              "requested": {"tasks": tasks, "methods": methods, "seeds": args.seeds,
+                                            "seed": args.seed, "steps": args.steps, "overrides": args.overrides},
+                              "grid_wall_seconds": wall_seconds})
+        out = results_dir_for(args.results_dir, args.preset)
+        print(f"artefacts: {len(manifest['files'])} files in {out} ({len(manifest['cells'])} stored cells, "
+              f"{len(manifest['not_run'])} not run): {', '.join(manifest['files'])}", flush=True)
+
+    return engine.GridPlan(cells, tasks, report)
 
 if __name__ == "__main__":
     sys.exit(main())

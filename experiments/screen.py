@@ -30,8 +30,8 @@ import envs
 from experiments import ablation, reproduce
 from experiments.analysis import cells, stats
 from experiments.grid.methods import task_name
-from experiments.grid import estimate
-from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec, launch
+from experiments.grid import engine
+from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec
 from experiments.grid.estimate import add_estimate_options, check_estimate_options
 from experiments.grid.spec import Method
 from experiments.training import grid_cells
@@ -98,13 +98,6 @@ def plan(a: argparse.Namespace) -> list[grid_cells.Cell]:
     check_estimate_options(a, tasks)
     grid_cells.validate_cells(out)
     return out
-
-
-def run_cells(a: argparse.Namespace, todo: list[grid_cells.Cell]) -> int:
-    """Runs the planned cells (``experiments.grid.cli.launch``: in turn, where a Ctrl-C stops the screen wherever it
-    comes, or on Ray); returns the exit status."""
-    status, _ = launch(todo, a, "screen")
-    return status
 
 
 # ------------------------------------------------------------------------------------------------ report
@@ -270,25 +263,22 @@ def main(argv: list[str] | None = None) -> int:
 
 def run_parsed(a: argparse.Namespace, argv: list[str] | None = None) -> int:
     """``main`` after parsing (``experiments.grid`` runs a named study through it)."""
+    del argv  # the report records no command line
+    return engine.run(a, lambda: grid_plan(a), report_only=a.report_only)
+
+
+def grid_plan(a: argparse.Namespace) -> engine.GridPlan:
+    """The screen's cells (``plan``) and its report (``write_report``)."""
     a.runs_dir = a.runs_dir or "runs/screen"
     a.results_dir = a.results_dir or "results/screen"
-    try:
-        todo = plan(a)
-    except ValueError as err:
-        print(f"error: {err}", file=sys.stderr)
-        return 2
-    if a.dry_run and not a.no_calibrate:
-        return estimate.dry_run(a, list(dict.fromkeys(cell.task for cell in todo)), todo)
-    status = 0
-    if not a.report_only:
-        status = run_cells(a, todo)
-    if a.dry_run:
-        return status
+    todo = plan(a)
     tasks = list(dict.fromkeys(cell.task for cell in todo)) or reproduce.parse_list(a.tasks, tuple(envs.TASKS), "task")
-    files = write_report(a.results_dir, tasks, a.steps, a.seeds, a.physics)
-    print("wrote " + ", ".join(files), flush=True)
-    return status
 
+    def report(wall_seconds: float) -> None:
+        del wall_seconds
+        print("wrote " + ", ".join(write_report(a.results_dir, tasks, a.steps, a.seeds, a.physics)), flush=True)
+
+    return engine.GridPlan(todo, tasks, report, word="screen")
 
 if __name__ == "__main__":
     sys.exit(main())

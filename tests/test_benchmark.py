@@ -55,9 +55,9 @@ def test_the_default_plan_and_a_gym_task(tmp_path, capsys, monkeypatch):
     assert out[0].startswith("exploration benchmark 'exploration': 6 tasks x 10 entries (TD3: 7, SAC: 3) = 60 cells "
                              "of 10 seeds, 300,000 env steps per seed, mujoco physics, base seed 1000")
     cells = [line for line in out if line.startswith("[")]
-    assert len(cells) == 60 and all("[new] running: python -m experiments.run" in c for c in cells)
-    assert out[-2:] == ["plan: 60 new", "estimated: not calibrated (--no-calibrate); 60 cells with work left"]
-    line = lambda tag: next(c for c in cells if f"] {tag} [" in c)
+    assert len(cells) == 60 and all(": running: python -m experiments.run" in c for c in cells)
+    assert out[-2:] == ["plan: 60 new", "estimated: not calibrated; 60 cells with work left"]
+    line = lambda tag: next(c for c in cells if f"] {tag}: " in c)
     hopper = line("td3/hopper/meta-tuned")
     assert "--method=meta --teacher=independent --preset=tuned --seeds=10 --seed=1000" in hopper
     assert "--physics=mujoco --student=td3 --steps=300000" in hopper
@@ -112,11 +112,11 @@ def test_the_plan_skips_done_cells_resumes_checkpointed_ones_and_estimates_the_r
                   seed=1000)
     assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 0
     out = capsys.readouterr().out
-    assert "td3/pendulum/td3-normal [done] done, skipped: final return 0.0" in out
-    assert "td3/pendulum/td3-pink [resume] resuming: python -m experiments.run" in out
+    assert "td3/pendulum/td3-normal: done, skipped: final return 0.0" in out
+    assert "td3/pendulum/td3-pink: resuming: python -m experiments.run" in out
     assert f"--resume {killed}" in out
-    assert "td3/reacher/td3-pink [restart] restarting (no checkpoint stored)" in out and "--overwrite" in out
-    assert "sac/reacher/sac-own [done] done, skipped" in out and "sac/pendulum/sac-own [new] running" in out
+    assert "td3/reacher/td3-pink: restarting (no checkpoint stored)" in out and "--overwrite" in out
+    assert "sac/reacher/sac-own: done, skipped" in out and "sac/pendulum/sac-own: running" in out
     assert "plan: 2 done, 2 new, 1 restart, 1 resume" in out
 
     # The estimate: each entry calibrated on the first task (pendulum), reacher scaled by the student's baseline.
@@ -172,7 +172,7 @@ def test_a_tiny_benchmark_runs_archives_skips_and_plans_the_resume(tmp_path, cap
     assert "benchmark: 1 skipped" in capsys.readouterr().out
     (cell / "summary.json").unlink()  # as if killed after its last checkpoint
     assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 0
-    assert "[resume] resuming: python -m experiments.run" in capsys.readouterr().out
+    assert ": resuming: python -m experiments.run" in capsys.readouterr().out
 
 
 def _write_rows(path, extra):

@@ -82,8 +82,9 @@ def test_every_study_resolves_every_stored_cell_of_its_grid(capsys, tmp_path):
         extra = ["--no-calibrate"] if study.kind == "benchmark" else []
         assert main([name, "--dry-run", "--runs-dir", str(tmp_path / "runs"), *extra]) == 0, name
         out = capsys.readouterr().out
+        assert "\nplan: " in out, name
         if name not in unfinished:
-            assert "would new" not in out and "[new]" not in out and "running:" not in out, name
+            assert ": running:" not in out and "estimated: nothing to run" in out, name
 
 
 def test_a_study_refuses_an_option_that_would_change_it(capsys):

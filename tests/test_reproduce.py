@@ -54,7 +54,7 @@ def test_reproduce_checks_every_cell_before_the_first_runs(tmp_path, capsys):
                                                    "final_return_std": 0.0}))
     assert reproduce.main([*base, "--methods", "ddpg-paramnoise,meta-independent", "--steps", "1000", "--seeds", "2",
                            "--dry-run"]) == 0
-    assert "grid: 1 skipped, 1 would new" in capsys.readouterr().out
+    assert "plan: 1 done, 1 new" in capsys.readouterr().out
 
 
 @pytest.mark.slow
@@ -99,12 +99,12 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     assert reproduce.main(no_steps + ["--dry-run"]) == 0
     out = capsys.readouterr().out
     assert out.count("extending from 600 to 900,000 steps: python -m experiments.run") == 2
-    assert out.count("--steps=900000") == 2 and "grid: 2 would extend" in out
+    assert out.count("--steps=900000") == 2 and "plan: 2 extend" in out
     # A cell whose evaluation interval is not the one a run at the requested budget gets is not extended.
     assert reproduce.main(argv + ["--steps", "1200", "--set", "run.eval_every=600", "--dry-run"]) == 0
     out = capsys.readouterr().out
     assert out.count("its evaluation interval 300 is not the 600 of a run at that budget") == 2
-    assert "grid: 2 skipped" in out
+    assert "plan: 2 done" in out
 
     # A cell with a checkpoint but no summary is resumed (with the same explicit options).
     (runs / "paper" / "pendulum" / "ddpg-paramnoise" / "summary.json").unlink()
@@ -146,7 +146,7 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     assert reproduce.main(argv + ["--methods", "ddpg-paramnoise", "--steps", "1200", "--dry-run"]) == 0
     out = capsys.readouterr().out
     assert "is below the requested 1,200, and no checkpoint to extend it from is stored" in out
-    assert "grid: 1 skipped" in out
+    assert "plan: 1 done" in out
     (cell / "checkpoints").rmdir()
     os.rename(cell / "checkpoints.moved", cell / "checkpoints")
 

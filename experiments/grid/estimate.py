@@ -165,7 +165,7 @@ def dry_run(a: argparse.Namespace, tasks: list[str], cells: list[Cell]) -> int:
     counts = {}
     for i, (cell, p) in enumerate(plans, 1):
         counts[p["state"]] = counts.get(p["state"], 0) + 1
-        line = f"[{i}/{len(plans)}] {cell.tag} [{p['state']}] {p['message']}"
+        line = f"[{i}/{len(plans)}] {cell.tag}: {p['message']}"
         if cell.key in estimates:
             e = estimates[cell.key]
             line += f"\n    estimated: {duration(e['cpu_seconds'])} CPU, {duration(e['wall_seconds'])} wall"
@@ -174,7 +174,7 @@ def dry_run(a: argparse.Namespace, tasks: list[str], cells: list[Cell]) -> int:
     if not todo:
         print("estimated: nothing to run", flush=True)
     elif a.no_calibrate:
-        print(f"estimated: not calibrated (--no-calibrate); {len(todo)} cells with work left", flush=True)
+        print(f"estimated: not calibrated; {len(todo)} cells with work left", flush=True)
     else:
         cpu = sum(e["cpu_seconds"] for e in estimates.values())
         wall = sum(e["wall_seconds"] for e in estimates.values())
