@@ -56,6 +56,7 @@ import sys
 from typing import Sequence
 
 from experiments.analysis import behaviour, cells, tables
+from experiments.analysis.render import behaviour as render_behaviour
 from experiments.analysis.render import figures, readme
 from experiments.analysis.render import tables as tables_md
 from experiments.grid import methods as grid
@@ -125,10 +126,10 @@ def build_all(runs_dir: str, results_dir: str, preset: str = "paper", tasks: Seq
                                              out_dir, footer, preset, build["commit"], student=student)
     files += tables_md.write_comparisons(tables.comparison_rows(results, tasks, methods), out_dir, footer, preset,
                                       build["commit"], student=student)
-    files += behaviour.write_behaviour(behaviour.behaviour_rows(results, tasks, methods), out_dir, footer, preset,
+    files += render_behaviour.write_behaviour(behaviour.behaviour_rows(results, tasks, methods), out_dir, footer, preset,
                                     build["commit"], student=student)
     _remove_stale(out_dir, ("coverage.md", "coverage.json"))
-    files += behaviour.write_coverage(behaviour.coverage_rows(results, tasks, baseline), out_dir, footer, preset, baseline,
+    files += render_behaviour.write_coverage(behaviour.coverage_rows(results, tasks, baseline), out_dir, footer, preset, baseline,
                                    build["commit"], student=student)
     files += figures.write_teacher_designs(results, out_dir, build, preset, student=student)
     _remove_stale(out_dir, [os.path.basename(p) for p in glob.glob(os.path.join(out_dir, "visitation_*.png"))])

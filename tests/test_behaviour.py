@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from experiments.analysis import behaviour, cells
+from experiments.analysis.render import behaviour as render_behaviour
 from experiments.grid import methods as grid
 from experiments.analysis.stats import fmt
 from tests.helpers import fabricate_run
@@ -44,7 +45,7 @@ def test_behaviour_table_summarises_what_the_explorer_stored(tmp_path):
     assert meta["teacher_log_std"]["final_mean"] == pytest.approx(log_std[:, -2:].mean())
     assert "teacher_student_distance" not in meta and "teacher_log_std" not in rows["ddpg-normal"]
     assert meta["eval_final"] == pytest.approx(results[("hopper", "meta-independent")].final().mean())
-    behaviour.write_behaviour(list(rows.values()), str(tmp_path), "", "tuned")
+    render_behaviour.write_behaviour(list(rows.values()), str(tmp_path), "", "tuned")
     md = (tmp_path / "behaviour.md").read_text()
     line = next(x for x in md.splitlines() if x.startswith("| Meta (independent) |"))
     assert f"| {fmt(train[:, 0].mean())} | {fmt(final_train.mean())} ± {fmt(final_train.std(ddof=1))} |" in line
