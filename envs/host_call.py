@@ -1,12 +1,20 @@
-"""The host call under the C engine's envs (``envs/mujoco_c.py``, ``envs/gym_generic.py``): a JAX primitive whose
-lowering is XLA's Python callback, the float32 <-> uint32 word views of the state the envs carry, and the thread
+"""The host call under the C engine's envs (``envs/mujoco_c.py``, ``envs/gym_generic.py``): ``jax.pure_callback``
+with ``vmap_method="expand_dims"``, the float32 <-> uint32 word views of the state the envs carry, and the thread
 count of MuJoCo's batch.
 
-The primitive skips ``jax.pure_callback``'s detour (pure_callback device_puts every argument into a jax Array
-before calling the function and converts the result back; a HalfCheetah step of 8 envs cost 169 us on top of the
-physics with it, 59 us with this). The function gets and returns numpy arrays; under vmap the batch axis is moved
-to the front, so one call gets the whole seeds x envs batch. Pure: no effects, so XLA may drop or repeat it like
-any op.
+Everything here is public JAX API (no ``jax._src``; ``tests/test_imports.py`` checks the repository for it).
+Under ``vmap`` the callback is not looped: each vmap adds a leading batch axis to its one argument, so one call
+gets the whole seeds x envs batch. Under ``jit`` with the seed axis sharded over several devices (automatic
+sharding, as ``experiments.run`` does it) JAX runs the callback once, on the first device, with the whole batch
+(tests/test_physics.py). It needs JAX's CPU backend (on a GPU, ``JAX_PLATFORMS`` must list ``cpu``). Pure: no effects, so XLA may drop or repeat it like any op.
+
+What it costs: ``pure_callback`` device_puts its argument into a jax Array before calling the function, a fixed
+cost per call, so the call passes one packed array each way: it is paid once per env step, not per field. Against
+the primitive on JAX's private callback module used before 2026-12-06 (which handed the function XLA's numpy
+arrays), a call costs about 95 us more (about 103 us against 8 us), and more inside the env programs on a loaded
+machine: env stepping of 8 envs 0.50-0.95x as fast, 8-seed Hopper DDPG training 0.86-1.03x
+(``results/benchmarks/host_call/``; docs/performance.md). An XLA FFI handler (``jax.ffi``) would skip the
+device_put, but needs compiled code: a handler that calls back into Python, or the task math in C++.
 """
 
 from __future__ import annotations
@@ -16,9 +24,6 @@ import os
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax._src import callback as _callback_lib  # private: the jax<0.11 pin covers it
-from jax.extend.core import Primitive
-from jax.interpreters import batching, mlir
 
 __all__ = ["default_threads", "host_call"]
 
@@ -31,45 +36,34 @@ def default_threads() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-_host_call_p = Primitive("mujoco_c_host_call")
-
-
 def host_call(fn, words: jax.Array, width: int) -> jax.Array:
-    """``fn(words) -> out`` on the host: uint32 (..., w_in) -> uint32 (..., width), numpy to numpy."""
-    return _host_call_p.bind(words, fn=fn, width=int(width))
+    """``fn(words) -> out`` on the host: uint32 (..., w_in) -> uint32 (..., width), numpy to numpy.
+
+    Under ``vmap`` the batch axes come first (``vmap_method="expand_dims"``): ``fn`` sees (*batch, ..., w_in)."""
+    words = jnp.asarray(words)
+    if words.dtype != jnp.uint32 or words.ndim < 1:
+        raise TypeError(f"host_call takes uint32 words (..., w), got {words.dtype} {words.shape}")
+    out = jax.ShapeDtypeStruct(words.shape[:-1] + (int(width),), jnp.uint32)
+    return jax.pure_callback(_Numpy(fn), out, words, vmap_method="expand_dims")
 
 
-@_host_call_p.def_impl
-def _host_call_impl(words, *, fn, width):
-    return jnp.asarray(fn(np.asarray(words)))
+class _Numpy:
+    """``fn`` on numpy arrays (``pure_callback`` hands its function jax Arrays on the CPU; ``np.asarray`` is
+    a view of one, no copy). Equal for equal ``fn``, so JAX's caches see the same callback."""
 
+    __slots__ = ("fn",)
 
-@_host_call_p.def_abstract_eval
-def _host_call_abstract(words, *, fn, width):
-    return jax.core.ShapedArray(words.shape[:-1] + (width,), jnp.uint32)
+    def __init__(self, fn):
+        self.fn = fn
 
+    def __call__(self, words):
+        return self.fn(np.asarray(words))
 
-def _host_call_batch(args, dims, *, fn, width):
-    (words,), (dim,) = args, dims
-    if dim is None:  # not mapped (JAX's batching.not_mapped)
-        return host_call(fn, words, width), None
-    return host_call(fn, jnp.moveaxis(words, dim, 0), width), 0
+    def __eq__(self, other):
+        return isinstance(other, _Numpy) and self.fn == other.fn
 
-
-def _host_call_lowering(ctx, words, *, fn, width):
-    (aval_out,) = ctx.avals_out
-    sharding = _callback_lib._callback_op_sharding(ctx.module_context.axis_context, None, ctx.avals_out)
-
-    def call(w):
-        return (fn(w),)
-
-    result, _, _ = _callback_lib.emit_python_callback(
-        ctx, call, None, [words], ctx.avals_in, [aval_out], has_side_effect=False, sharding=sharding)
-    return result
-
-
-batching.primitive_batchers[_host_call_p] = _host_call_batch
-mlir.register_lowering(_host_call_p, _host_call_lowering)
+    def __hash__(self):
+        return hash(self.fn)
 
 
 def _words(x: jax.Array) -> jax.Array:

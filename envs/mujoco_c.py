@@ -3,7 +3,7 @@
 The gymnasium v5 tasks of ``envs/gym_mujoco.py`` (their observation, reward,
 termination, reset noise and action scaling, written once) stepped by
 MuJoCo's own C library instead of MJX. Every env step of every seed is one
-host call (``host_call`` below: XLA's Python callback) that receives the
+host call (``host_call`` below: ``jax.pure_callback``) that receives the
 whole batch (seeds x envs arrive as one array) and steps it with
 ``mujoco.batch.Batch``, MuJoCo's thread pool over many simulations of one
 model. Its results are bit-identical to a loop of ``mj_step`` over one
@@ -30,7 +30,7 @@ What lives where:
   whose state rows every call overwrites from its input. A lock serialises
   calls that share a scratch batch (e.g. callbacks of several devices).
 
-The host call itself (a JAX primitive lowered to XLA's Python callback) is ``envs/host_call.py``.
+The host call itself (``jax.pure_callback``, one packed uint32 array each way) is ``envs/host_call.py``.
 
 One callback per env step: the auto-reset is fused into the step
 (``step_with_reset``): the host steps every env, and envs that ended (their

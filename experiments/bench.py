@@ -104,9 +104,10 @@ def main(argv: list[str] | None = None) -> int:
                    help="MuJoCo tasks with MJX's stock line search (early_exit_linesearch=False): the 'before' "
                         "rows of the line-search change, kept next to the default rows (with --env-speed: an "
                         "extra column)")
-    p.add_argument("--physics", default="mjx",
+    p.add_argument("--physics", default=None,
                    help="comma-separated engines of the training rows' MuJoCo tasks: mjx (default), mujoco, "
-                        "or mjx,mujoco for both side by side (pendulum rows are JAX either way)")
+                        "or mjx,mujoco for both side by side (pendulum rows are JAX either way); with --env-speed "
+                        "the engines stepped (default mjx,mujoco; mujoco alone skips MJX and the JAX tasks)")
     p.add_argument("--plain-vmap", action="store_true",
                    help="vmap the seeds without naming the axis: every episode-start branch runs at every step "
                         "(the 'before' rows of that change, kept next to the default rows)")
@@ -152,9 +153,12 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     try:
-        physics = parse_list(args.physics, envs.PHYSICS, "physics")
+        physics = parse_list(args.physics or ("mjx,mujoco" if args.env_speed else "mjx"), envs.PHYSICS, "physics")
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
+        return 2
+    if args.env_speed and "mjx" not in physics and not any(envs.has_mujoco(t) for t in tasks):
+        print("error: --physics=mujoco steps only MuJoCo tasks; --envs names none", file=sys.stderr)
         return 2
     seeds = args.seeds.split(",")
     if not all(s.strip().isdigit() and int(s) > 0 for s in seeds):
@@ -206,10 +210,11 @@ def main(argv: list[str] | None = None) -> int:
             write_section(args.out, "main-job", main_job_markdown(rows, meta))
         return 0
     if args.env_speed:
+        meta.update({k: v for k, v in provenance.record().items() if k in ("commit", "dirty")})
         results = []
-        for task in tasks:
+        for task in tasks if "mjx" in physics else [t for t in tasks if envs.has_mujoco(t)]:
             results.append(measure_env_speed(task, num_envs=args.num_envs, repeats=args.repeats,
-                                             stock_mjx=args.stock_mjx))
+                                             stock_mjx=args.stock_mjx, engines=physics))
             print(env_speed_markdown(results, meta).splitlines()[-1], flush=True)
             runfiles.write_json_atomic(json_path, {"meta": meta, "env_speed": results})
             write_section(args.out, "env-speed", env_speed_markdown(results, meta))

@@ -14,8 +14,8 @@ def _session_compile_cache() -> None:
     the tests start (they inherit the variables): a program that several tests compile with the same
     shapes (the tiny runs of tests/helpers.py) compiles once and loads afterwards. The size limit
     makes JAX's cache take its file lock, so workers do not read each other's half-written entries.
-    Programs with MuJoCo C engine calls are never stored (JAX does not cache host callbacks). Tests
-    of the cache itself name their own folders (tests/test_longrun.py)."""
+    Programs with MuJoCo C engine calls are stored by jax 0.12, not by jax 0.10 (which does not cache
+    host callbacks). Tests of the cache itself name their own folders (tests/test_longrun.py)."""
     if os.environ.get("METAPG_TEST_COMPILE_CACHE"):  # an xdist worker: the controller made it
         return
     folder = tempfile.mkdtemp(prefix="metapg-test-xla-")

@@ -53,6 +53,12 @@ def test_env_speed_markdown_has_both_engines_the_limits_and_the_verdicts():
     assert "| pendulum | 1,000,000 | – | – | – | – | – | – | – | – | – | 50,000 | 0.5 / – |" in md
     assert "2 threads" in md and "8 envs vmapped" in md
     assert "| inverted_double_pendulum | 5,000 | 2.00x | NO |" in md  # the stock line search column
+    assert "on d (m;" in md
+    # --physics=mujoco: the C engine's columns alone; the commit measured is named.
+    c_only = {k: v for k, v in res[1].items() if k not in ("compile_s", "ours_steps_per_s", "c_over_mjx")}
+    md = env_speed.env_speed_markdown([c_only], {**meta, "commit": "0123456789abcdef", "dirty": False})
+    assert "| hopper | – | 12,000 | – | 13,000 | 0.92x | 20,000 | 267 | 9,000 | 8,000 | – | 8,300 | – / 1.5 |" in md
+    assert "on d at 0123456 (m;" in md
 
 
 def test_engines_table_pairs_rows_of_one_date():
@@ -74,6 +80,8 @@ def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
     assert "unknown task(s) cartpole" in capsys.readouterr().err
     assert bench.main(["--env-speed", "--envs", "pendulum", "--num-envs", "0", "--out", out]) == 2
     assert "--num-envs and --repeats must be positive" in capsys.readouterr().err
+    assert bench.main(["--env-speed", "--envs", "pendulum", "--physics", "mujoco", "--out", out]) == 2
+    assert capsys.readouterr().err == "error: --physics=mujoco steps only MuJoCo tasks; --envs names none\n"
     for argv, message in ((["--methods", "ddpg,sac"], "unknown method 'sac'; valid: ddpg, meta, own"),
                           (["--strategies", "td3-brown"], "unknown grid method 'td3-brown'"),
                           (["--presets", "fast"], "unknown preset 'fast'; valid: paper, modern"),

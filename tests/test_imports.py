@@ -105,6 +105,52 @@ def test_the_package_has_no_import_cycles_and_nothing_imports_a_strategy():
         visit(m, [])
 
 
+def _private_jax(source: str, name: str = "<source>") -> list[str]:
+    """Where ``source`` reaches into JAX's private package: an import of ``jax._src`` (or of something in it,
+    ``from jax import _src``) or an attribute ``jax._src``, as 'line N: what'."""
+    found = []
+    for node in ast.walk(ast.parse(source, name)):
+        names = []
+        if isinstance(node, ast.Import):
+            names = [alias.name for alias in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            names = [node.module] + [f"{node.module}.{alias.name}" for alias in node.names]
+        elif isinstance(node, ast.Attribute) and node.attr == "_src" and isinstance(node.value, ast.Name):
+            names = [f"{node.value.id}._src"]
+        found += [f"line {node.lineno}: {n}" for n in names if n == "jax._src" or n.startswith("jax._src.")][:1]
+    return found
+
+
+def _notebook_code(path: str) -> str:
+    """A notebook's code cells as one Python source (IPython's ``%`` and ``!`` lines left out)."""
+    import json
+
+    cells = json.load(open(path))["cells"]
+    lines = [line for c in cells if c["cell_type"] == "code" for line in "".join(c["source"]).splitlines()]
+    return "\n".join("" if line.lstrip().startswith(("%", "!")) else line for line in lines)
+
+
+def test_nothing_imports_jax_private_package():
+    """JAX's private ``jax._src`` may change in any release (jax's API compatibility policy covers only the public
+    modules): the code, the studies, the notebooks and the tests use public JAX only."""
+    assert _private_jax("from jax._src import callback\nimport jax._src.core as c\nfrom jax import _src\n"
+                        "import jax\njax._src.config\nfrom mujoco.mjx._src import solver\nimport jax.ffi\n") == [
+        "line 1: jax._src", "line 2: jax._src.core", "line 3: jax._src", "line 5: jax._src"]
+    found, checked = {}, 0
+    for package in ("metapg_jax", "envs", "experiments", "tests", "results"):
+        for folder, dirs, files in os.walk(os.path.join(ROOT, package)):
+            dirs[:] = [d for d in dirs if d != "__pycache__"]
+            for f in files:
+                path = os.path.join(folder, f)
+                if f.endswith((".py", ".ipynb")):
+                    checked += 1
+                    source = _notebook_code(path) if f.endswith(".ipynb") else open(path).read()
+                    hits = _private_jax(source, path)
+                    if hits:
+                        found[os.path.relpath(path, ROOT)] = hits
+    assert checked > 150 and found == {}
+
+
 MAX_MODULE_LINES = 400
 
 

@@ -169,6 +169,55 @@ def test_the_vmapped_callback_gets_the_whole_batch_in_one_call(monkeypatch):
     assert out.obs.shape == (seeds, per_seed, raw.observation_size)
 
 
+def sharded_steps() -> dict:
+    """Reset and 6 steps of 4 seeds x 3 Hopper envs on the C engine with the seed axis sharded over every device,
+    as ``experiments.run`` shards it (``metapg_jax/host/driver.py``): the trajectory, the device count and the
+    shapes the host's step got."""
+    from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+    raw = envs.make_raw("hopper", physics="mujoco")
+    shapes = []
+    step_words = raw.host.step_words
+    raw.host.step_words = lambda w, fused: shapes.append(np.shape(w)) or step_words(w, fused)
+    mesh = Mesh(np.array(jax.devices()), ("seeds",))
+    seeds, time_seeds = NamedSharding(mesh, PartitionSpec("seeds")), NamedSharding(mesh, PartitionSpec(None, "seeds"))
+    keys = jax.random.split(jax.random.PRNGKey(0), 12).reshape(4, 3, 2)
+    actions = jax.random.uniform(jax.random.PRNGKey(1), (6, 4, 3, raw.action_size), minval=-1.0, maxval=1.0)
+
+    def run(keys, actions):
+        def body(s, a):
+            s = jax.vmap(jax.vmap(raw.step))(s, a)
+            return s, (s.obs, s.reward, s.pipeline_state)
+        return jax.lax.scan(body, jax.vmap(jax.vmap(raw.reset))(keys), actions)[1]
+
+    run = jax.jit(run, in_shardings=(seeds, time_seeds), out_shardings=time_seeds)
+    obs, reward, words = jax.device_get(run(jax.device_put(keys, seeds), jax.device_put(actions, time_seeds)))
+    return {"obs": obs, "reward": reward, "words": words, "devices": jax.device_count(), "shapes": np.array(shapes)}
+
+
+def test_the_host_call_gets_the_whole_batch_once_with_the_seed_axis_sharded(tmp_path):
+    """Two CPU devices, each holding two seeds (a subprocess: the device count is fixed at JAX's start): the host
+    steps all 12 envs in one call per step (on one device), and the numbers are one device's bit for bit."""
+    import subprocess
+    import sys
+
+    from tests import xla_flags
+
+    path = str(tmp_path / "two.npz")
+    code = f"import numpy as np; from tests.test_physics import sharded_steps; np.savez({path!r}, **sharded_steps())"
+    env = {**os.environ, "XLA_FLAGS": xla_flags("--xla_force_host_platform_device_count=2")}
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    out = subprocess.run([sys.executable, "-c", code], cwd=root, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-3000:]
+    one, two = sharded_steps(), dict(np.load(path))
+    assert (one["devices"], int(two["devices"])) == (1, 2)
+    w_in = envs.make_raw("hopper", physics="mujoco").host.w_state + 3
+    for r in (one, two):
+        assert r["shapes"].tolist() == [[4, 3, w_in]] * 6
+    for k in ("obs", "reward", "words"):
+        np.testing.assert_array_equal(one[k], two[k], err_msg=k)
+
+
 def test_engines_refuse_what_they_cannot_run():
     with pytest.raises(ValueError, match="unknown physics 'bullet'; valid physics: auto, mjx, mujoco"):
         envs.make("hopper", physics="bullet")

@@ -104,7 +104,7 @@ def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int) -
 
 
 def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: int = 3,
-                      stock_mjx: bool = False) -> dict:
+                      stock_mjx: bool = False, engines=("mjx", "mujoco")) -> dict:
     """Env stepping alone, ``num_envs`` envs: our task through the compiled program (a jitted scan,
     vmapped, with the training wrappers, auto-reset included) on each engine: MJX and MuJoCo's C
     engine through the host callback (``physics='mujoco'``); for the MuJoCo tasks the C engine's
@@ -112,7 +112,7 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
 
     With ``stock_mjx``, MJX is timed a second time with its stock line search
     (``early_exit_linesearch=False``) and the two trajectories are checked to be identical
-    (see envs/mujoco_base.py, "Speed")."""
+    (see envs/mujoco_base.py, "Speed"). ``engines`` without "mjx": the C engine's columns alone (a MuJoCo task)."""
     import gymnasium
     import jax
     import jax.numpy as jnp
@@ -140,20 +140,23 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
         traj = jax.device_get(fn(state, jax.random.PRNGKey(1))[1])
         return num_envs * steps / seconds, times, compile_s, traj
 
-    ours, ours_times, compile_s, traj = time_ours()
-    out = {"task": task, "num_envs": num_envs, "steps": steps, "compile_s": compile_s,
-           "ours_steps_per_s": ours, "ours_times": ours_times}
-    if envs.has_mujoco(task):
+    out = {"task": task, "num_envs": num_envs, "steps": steps}
+    if "mjx" in engines or not envs.has_mujoco(task):
+        ours, ours_times, out["compile_s"], traj = time_ours()
+        out.update(ours_steps_per_s=ours, ours_times=ours_times)
+    if envs.has_mujoco(task) and "mujoco" in engines:
         threads = default_threads()
         c, c_times, c_compile_s, _ = time_ours(physics="mujoco")
-        out.update(c_steps_per_s=c, c_times=c_times, c_compile_s=c_compile_s, c_over_mjx=c / ours,
+        out.update(c_steps_per_s=c, c_times=c_times, c_compile_s=c_compile_s,
                    **_c_loops(task, num_envs, steps, threads, repeats))
+        if "ours_steps_per_s" in out:
+            out["c_over_mjx"] = c / out["ours_steps_per_s"]
         out["c_over_raw_loop"] = c / out["raw_loop_steps_per_s"]
         out["c_over_batch"] = c / out["batch_steps_per_s"]
         # What one step of the batch costs in the program on top of the same physics outside JAX: the
         # host call, the task math in numpy, the resets, the wrappers' and the program's own work.
         out["c_overhead_us_per_step"] = 1e6 * num_envs * (1 / c - 1 / out["batch_steps_per_s"])
-        if stock_mjx:
+        if stock_mjx and "mjx" in engines:
             stock, stock_times, stock_compile_s, stock_traj = time_ours(early_exit_linesearch=False)
             out.update(stock_steps_per_s=stock, stock_times=stock_times, stock_compile_s=stock_compile_s,
                        early_exit_speedup=ours / stock,
@@ -191,8 +194,9 @@ def env_speed_markdown(results: list[dict], meta: dict) -> str:
 
     n = results[0]["num_envs"]
     threads = next((r["c_threads"] for r in results if "c_threads" in r), None)
+    commit = f" at {meta['commit'][:7]}{' (with changes)' if meta.get('dirty') else ''}" if "commit" in meta else ""
     lines = [
-        f"`python -m experiments.bench --env-speed` on {meta['date']} ({meta['machine']}; jax {meta['jax']}, "
+        f"`python -m experiments.bench --env-speed` on {meta['date']}{commit} ({meta['machine']}; jax {meta['jax']}, "
         f"backend {meta['backend']}; medians of {meta['repeats']} timed repeats; raw numbers: "
         f"`{os.path.basename(meta['json'])}`), all in one process per run: our tasks, {n} envs vmapped in a "
         f"jitted scan of {results[0]['steps']:,} uniform-random steps with the training wrappers (auto-reset "
