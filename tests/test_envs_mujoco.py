@@ -161,10 +161,14 @@ def _check_mjx_and_the_c_engine_agree_to_float32_round_off(name, p):
             assert done_t[t, row] == float(r["terminated"][0]), where
 
 
-# IDP: no contacts, searches of 0-1 steps; Hopper: contacts and searches that
-# bisect to float32 resolution (24-25 steps). The other tasks are checked the
-# same way by hand (bitwise equal over 8 envs x 1,000 random steps, see
-# envs/gym_mujoco.py); one compile of stock MJX per task is the cost here.
+# Hopper: contacts and searches that bisect to float32 resolution (24-25 steps). The two loops compile
+# to different programs, so equality is to round-off: bitwise on the CPUs where it was first measured,
+# but CI's CPU gave differences of up to 1.9e-6 from step 11 on (XLA's code for the two loop bodies
+# differs there); a search stopped one step early or late moves a contact rollout far more. The other
+# tasks are checked by hand (envs/mujoco_base.py); one compile of stock MJX is the cost here.
+EARLY_EXIT_TOL = 1e-5
+
+
 def _check_early_exit_linesearch_is_stock_physics(name, fast):
     stock_loop = _mjx_solver._while_loop_scan
     stock_env = GYMNASIUM_TASKS[name](early_exit_linesearch=False)
@@ -176,8 +180,11 @@ def _check_early_exit_linesearch_is_stock_physics(name, fast):
     with jax.default_matmul_precision("highest"):
         stock = stock_run(fast["s0"], fast["actions"])
     assert _mjx_solver._while_loop_scan is stock_loop  # the swap is scoped to tracing our step
-    for a, b in zip(jax.tree.leaves(fast["traj"]), jax.tree.leaves((stock.obs, stock.reward, stock.done, stock.metrics))):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    fast_done, stock_done = fast["traj"][2], stock.done
+    np.testing.assert_array_equal(np.asarray(fast_done), np.asarray(stock_done))  # the same terminations
+    leaves = zip(jax.tree.leaves(fast["traj"]), jax.tree.leaves((stock.obs, stock.reward, stock.done, stock.metrics)))
+    for i, (a, b) in enumerate(leaves):
+        assert _dev(a, b) <= EARLY_EXIT_TOL, (i, _dev(a, b))
     # the rollouts did move: the comparison is not between two constant arrays
     assert np.ptp(np.asarray(fast["traj"][0])) > 0.1
 

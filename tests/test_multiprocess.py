@@ -113,6 +113,9 @@ def test_a_two_process_job_killed_mid_run_resumes_to_the_numbers_of_one_process_
     assert codes == [0, 0], logs
     assert "resumed after" in logs[0] and "final return" in logs[0]
     assert "final return" not in logs[1]  # process 1 trains its shard and writes nothing
+    # the session's compile cache is off for a job of several CPU processes (metapg_jax/host/compile_cache.py):
+    # with it, process 0 loaded the first job's program, process 1 compiled its own, and the two hung
+    assert all("compile cache off: several processes on CPU" in log for log in logs)
     rows = _rows(out)
     assert sorted((r["seed"], r["chunk"]) for r in rows) == [(s, c) for s in range(2) for c in range(4)]
     summary = json.load(open(os.path.join(out, "summary.json")))

@@ -31,6 +31,13 @@ JAX's own cache does the work; this module picks the folder, turns it on and cou
   the entry named in the warning, or the folder.
 * ``experiments.bench`` and ``experiments.bench_replay`` turn the cache off: their compile times
   are cold compiles.
+* A job of several processes on CPU runs without it (:func:`resolve` says no; the run's compile line
+  says why). JAX writes entries from process 0 only, and on CPU its key includes what differs between
+  processes, so a rerun or resume found process 0's programs in the cache and compiled process 1's
+  afresh; the two processes then ran executables that disagree on their collectives and hung in Gloo
+  (measured: a two-process Pendulum job killed and resumed with ``--resume`` never finished; without the
+  cache it finished). On GPU JAX strips the device assignment from the key, and every process finds
+  process 0's entry.
 """
 
 from __future__ import annotations
@@ -61,7 +68,7 @@ def resolve(flag: str | None) -> str | None:
         path = None
     else:
         path = os.environ.get("JAX_COMPILATION_CACHE_DIR") or DEFAULT_DIR
-    if path is None:
+    if path is None or several_cpu_processes():
         return None
     if not path.strip():
         raise ValueError("--compile-cache needs a folder (or 'off')")
@@ -78,6 +85,15 @@ def resolve(flag: str | None) -> str | None:
     if not os.access(path, os.W_OK):
         raise ValueError(f"compile cache {path} is not writable; pass --compile-cache DIR or off")
     return path
+
+
+def several_cpu_processes() -> bool:
+    """Whether this process is one of several of a JAX distributed job on the CPU backend (the module's
+    docstring says why such a job runs without the cache). False, without touching JAX's backends, when
+    ``jax.distributed`` was not started."""
+    import jax
+
+    return jax.distributed.is_initialized() and jax.process_count() > 1 and jax.default_backend() == "cpu"
 
 
 def _local(path: str) -> str:
@@ -136,7 +152,8 @@ def describe(path: str | None, before: dict[str, int], after: dict[str, int]) ->
     """A run's one-line account of its compile (e.g. "compile cache /x: 2 programs loaded, 0 compiled,
     0 stored") and the numbers for its summary.json."""
     if path is None:
-        return "compile cache off", {"compile_cache": None}
+        why = ": several processes on CPU, see metapg_jax/host/compile_cache.py" if several_cpu_processes() else ""
+        return f"compile cache off{why}", {"compile_cache": None}
     d = {k: after[k] - before[k] for k in after}
     n = {"loaded": d["loaded"], "compiled": d["requests"] - d["loaded"], "stored": d["stored"]}
     return (f"compile cache {path}: {n['loaded']} program(s) loaded, {n['compiled']} compiled, "
