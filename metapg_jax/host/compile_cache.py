@@ -32,12 +32,11 @@ JAX's own cache does the work; this module picks the folder, turns it on and cou
 * ``experiments.bench`` and ``experiments.bench_replay`` turn the cache off: their compile times
   are cold compiles.
 * A job of several processes on CPU runs without it (:func:`resolve` says no; the run's compile line
-  says why). JAX writes entries from process 0 only, and on CPU its key includes what differs between
-  processes, so a rerun or resume found process 0's programs in the cache and compiled process 1's
-  afresh; the two processes then ran executables that disagree on their collectives and hung in Gloo
-  (measured: a two-process Pendulum job killed and resumed with ``--resume`` never finished; without the
-  cache it finished). On GPU JAX strips the device assignment from the key, and every process finds
-  process 0's entry.
+  says why). JAX writes entries from process 0 only, and on CPU process 1 did not find them: a resume
+  loaded process 0's program from the cache and compiled process 1's afresh, and the two processes
+  hung in their first Gloo collective (a two-process Pendulum job killed and resumed with ``--resume``
+  never finished; without the cache it finished). On GPU JAX strips the device assignment from the key
+  so that every process finds process 0's entry; the cache stays on there.
 """
 
 from __future__ import annotations
