@@ -34,7 +34,7 @@ JAX's own cache does the work; this module picks the folder, turns it on and cou
 * A job of several processes on CPU runs without it (:func:`resolve` says no; the run's compile line
   says why). JAX writes entries from process 0 only, and on CPU process 1 did not find them: a resume
   loaded process 0's program from the cache and compiled process 1's afresh, and the two processes
-  hung in their first Gloo collective (a two-process Pendulum job killed and resumed with ``--resume``
+  hung in their first Gloo collective (a tiny two-process job killed and resumed with ``--resume``
   never finished; without the cache it finished). On GPU JAX strips the device assignment from the key
   so that every process finds process 0's entry; the cache stays on there.
 """
