@@ -5,9 +5,9 @@ limit, the paper's budget, meta schedule and Table 2 numbers where the paper has
 evaluation interval. Everything else (the config's defaults, Meta's schedule, the experiments' task lists
 and table names) reads the spec; adding a task is adding its entry (and its env's code) here.
 
-The built-in tasks are the paper's six. Pendulum is our JAX port of gymnasium's
-Pendulum-v1; the five MuJoCo tasks are gymnasium's v5 models
-(``source='gymnasium'``, the default and the reference) stepped by MJX
+The built-in tasks are the paper's six and MountainCarContinuous. Pendulum and MountainCarContinuous
+are our JAX ports of gymnasium's Pendulum-v1 and MountainCarContinuous-v0; the five MuJoCo tasks are
+gymnasium's v5 models (``source='gymnasium'``, the default and the reference) stepped by MJX
 (``physics='mjx'``) or by MuJoCo's own C engine from inside the program
 (``physics='mujoco'``, envs/mujoco_c.py; ``physics='auto'``, the command lines'
 default, picks it on a CPU: ``resolve_physics``), or, as an explicit fast
@@ -108,6 +108,11 @@ TASKS: dict[str, TaskSpec] = {
         "Reacher-v5", 50, 700_000, eval_every=6_000, display_name="Reacher",
         entry_point="envs.gym_mujoco:Reacher", brax_name="reacher",
         table2=Table2Row(6, meta=(-12.16, 1.19), ddpg=(-11.67, 3.39))),
+    # Not in the paper: a sparse reward, where exploration decides the outcome (envs/mountain_car.py). No paper
+    # budget: 60k steps (60 episodes' worth at the time limit), evaluated every 3k (20 evaluations).
+    "mountain_car_continuous": TaskSpec(
+        "MountainCarContinuous-v0", 999, 60_000, eval_every=3_000, display_name="MountainCarContinuous",
+        entry_point="envs.mountain_car:MountainCarContinuous", mujoco=False),
 }
 # The task a config names when none is given (``metapg_jax.config.make_config``, ``experiments.run``).
 DEFAULT_TASK = "pendulum"
@@ -131,8 +136,8 @@ def resolve_physics(name: str, source: str, physics: str, backend: str | None = 
     'auto' is MuJoCo's C engine for a gymnasium MuJoCo task where JAX's default backend is the CPU
     (measured on 2 CPU cores: the main job compiled 8.0x and trained 2.3x faster there than on MJX;
     results/benchmarks/BENCHMARKS.md, "The main job"), and MJX on accelerators (the C engine runs on the host CPU), for brax's
-    models (MJX only) and for a JAX task (Pendulum: its value is irrelevant and stays 'mjx'). A ``gym:`` task
-    has the C engine only: 'auto' is 'mujoco' on every backend.
+    models (MJX only) and for a JAX task (Pendulum, MountainCarContinuous: its value is irrelevant and stays
+    'mjx'). A ``gym:`` task has the C engine only: 'auto' is 'mujoco' on every backend.
 
     Args:
       name, source: the task and its model source.
@@ -158,7 +163,8 @@ def default_budget(name: str) -> int:
 
     Equal to the paper's for pendulum, IP, IDP and HalfCheetah; Hopper gets
     990k instead of 1M and Reacher 696k instead of 700k, because the meta
-    cycle (300 steps) does not divide the paper's numbers. A ``gym:`` task has no
+    cycle (300 steps) does not divide the paper's numbers. MountainCarContinuous,
+    not in the paper, has its spec's 60k. A ``gym:`` task has no
     paper budget: 1M (``envs.gym_names.DEFAULT_BUDGET``), i.e. 990k.
     """
     spec = get_spec(name)
@@ -188,7 +194,7 @@ def display_name(name: str) -> str:
 
 def has_mujoco(name: str) -> bool:
     """Whether MuJoCo steps the task (MJX or the C engine): every ``gym:`` task, and a built-in one whose spec says
-    so; False for a JAX task (Pendulum)."""
+    so; False for a JAX task (Pendulum, MountainCarContinuous)."""
     return is_gym_task(name) or get_spec(name).mujoco
 
 
@@ -260,7 +266,8 @@ def make(name: str, source: str = "gymnasium", episode_length: int | None = None
     Args:
       name: one of ``TASKS``, or ``gym:<Id>`` (any gymnasium MuJoCo env; ``physics='mujoco'`` or 'auto').
       source: ``'gymnasium'`` (default: gymnasium's v5 model) or ``'brax'`` (brax's own, MJX only).
-      episode_length: time limit; default gymnasium's (1000; Reacher 50; Pendulum 200).
+      episode_length: time limit; default gymnasium's (1000; Reacher 50; Pendulum 200;
+        MountainCarContinuous 999).
       physics: ``'mjx'`` (default), ``'mujoco'`` (MuJoCo's C engine, envs/mujoco_c.py) or ``'auto'``
         (``resolve_physics``: the C engine where JAX runs on the CPU).
       physics_threads: the C engine's threads per batch (default: the CPUs this process may use).

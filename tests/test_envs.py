@@ -202,6 +202,6 @@ def test_default_budgets_are_reachable_by_every_built_in_explorer():
         for method in strategy.explorers():  # each evaluates at the task's interval: the same sample counts
             # (--method=own samples a stochastic student's policy: SAC's)
             student = "sac" if method == "own" else "ddpg"
-            cfg = validate(make_config(name, method, physics="mujoco" if name != "pendulum" else "mjx",
+            cfg = validate(make_config(name, method, physics="mujoco" if envs.has_mujoco(name) else "mjx",
                                        student=student))
             assert cfg.run.total_steps == budget and cfg.run.eval_every == spec.eval_every, (name, method)

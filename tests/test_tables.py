@@ -228,7 +228,8 @@ def test_table2_judges_every_teacher_against_every_noise_baseline_with_holm(tmp_
     assert json.loads((tmp_path / "out" / "table2.json").read_text())["verdicts"][1]["baseline"] == "ddpg-normal"
     # The footer's engines: the MuJoCo cells' physics; a grid with only the JAX Pendulum stored names no MuJoCo engine.
     assert tables_md.engines_text(results.values()) == "MJX"
-    assert "MJX" not in tables_md.engines_text([results[("pendulum", "ddpg-normal")]])
+    pendulum_only = [results[("pendulum", "ddpg-normal")]]
+    assert tables_md.engines_text(pendulum_only) == "JAX (Pendulum only: no MuJoCo cell stored)"
 
 
 def test_modern_preset_compares_meta_with_its_own_gaussian_noise_ddpg(tmp_path):

@@ -96,14 +96,16 @@ def budget_text(task: str, budgets: dict) -> str:
 
 def engines_text(results: Iterable[RunResult]) -> str:
     """How the stored MuJoCo cells were stepped: 'MJX', "MuJoCo's C engine" or both (a JAX task has neither), and
-    what a grid with no MuJoCo cell stored has: the JAX tasks only."""
+    what a grid with no MuJoCo cell stored has: the JAX tasks of its cells only."""
     import envs  # brax on import: only when a table is written
 
+    results = list(results)
     physics = {r.config["env"].get("physics", "mjx") for r in results if envs.has_mujoco(r.task)}
     names = {"mjx": "MJX", "mujoco": "MuJoCo's C engine"}
     if physics:
         return " and ".join(names[p] for p in sorted(physics))
-    return f"JAX ({', '.join(task_name(t) for t in envs.TASKS if not envs.has_mujoco(t))} only: no MuJoCo cell stored)"
+    stored = {r.task for r in results}
+    return f"JAX ({', '.join(task_name(t) for t in envs.TASKS if t in stored)} only: no MuJoCo cell stored)"
 
 
 def write_table2(rows: list[dict], methods: Sequence[str], out_dir: str, footer: str, preset: str,
