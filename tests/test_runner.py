@@ -185,7 +185,8 @@ def _loop(signals, step, num_chunks, saved, due=lambda *_: False, save_seconds=0
 
 
 def test_a_sigterm_within_its_grace_finishes_the_chunk_in_flight_checkpoints_it_and_exits_143(capsys):
-    """Chunks of 0.1 s; SIGTERM 0.02 s into the third: it ends and is checkpointed (no checkpoint before), 143."""
+    """Chunks of 0.1 s; SIGTERM 0.02 s into the third: it ends and is checkpointed (no checkpoint before), 143; the
+    loop's stop reaches the command's outer ``Signals`` (a grid's, a sweep's), so it starts nothing more."""
     saved = []
     with runner.Signals() as outer:  # a grid's or a sweep's, around the loop
         with runner.Signals(grace=2.0) as signals:
@@ -209,24 +210,25 @@ def test_a_sigterm_within_its_grace_finishes_the_chunk_in_flight_checkpoints_it_
 
 
 def test_a_sigterm_whose_grace_cannot_be_met_or_without_one_stops_at_once(capsys):
-    """Chunks of 0.3 s, SIGTERM 0.01 s into the third with a 0.4 s grace: 0.29 s of chunk and, with no checkpoint
-    written yet, half the grace for one do not fit: stopped at once, saying why. With a measured checkpoint of
-    0.05 s (after the first chunk) the same SIGTERM fits. A grace of 0, a second signal, and a SIGTERM outside a
-    loop stop at once."""
+    """Chunks of 0.3 s, SIGTERM 0.01 s into the third with a 0.5 s grace: the chunk's 0.29 s fit when no checkpoint
+    was written yet in the call (nothing is kept for one); with a checkpoint of 0.3 s measured after the first
+    chunk they do not: stopped at once, saying why. A grace of 0, a second signal, and a SIGTERM outside a loop stop
+    at once."""
     chunks = [0.3] * 4
     saved = []
-    with runner.Signals(grace=0.4) as signals:
+    with runner.Signals(grace=0.5) as signals:
+        _, status, _ = _loop(signals, _timed_chunks(chunks, {2: {0.01: signal.SIGTERM}}), 4, saved)
+    assert status == 143 and saved == [3]
+    saved = []
+    with runner.Signals(grace=0.5) as signals:
         with pytest.raises(runner.Stopped) as stop:
-            _loop(signals, _timed_chunks(chunks, {2: {0.01: signal.SIGTERM}}), 4, saved)
-    assert stop.value.status == 143 and saved == [] and signals.in_flight == 3
-    assert re.fullmatch(r" \(0\.4 s grace, 0\.\d s of it left: the chunk in flight needs about 0\.\d s more and 0\.2 s "
-                        r"\(half the grace\) kept for a checkpoint, none written yet in this call\)", stop.value.reason)
-    line = runner.stop_message(stop.value, "the run", 3, 4, None, 300, "RESUME", "RESTART")
-    assert line.startswith("stopped by SIGTERM (0.4 s grace, ") and "chunk 3 of 4 was running and is lost" in line
-    with runner.Signals(grace=0.4) as signals:
-        _, status, _ = _loop(signals, _timed_chunks(chunks, {2: {0.01: signal.SIGTERM}}), 4, saved,
-                             due=lambda run_here, since: run_here == 1, save_seconds=0.05)
-    assert status == 143 and saved == [1, 3]
+            _loop(signals, _timed_chunks(chunks, {2: {0.01: signal.SIGTERM}}), 4, saved,
+                  due=lambda run_here, since: run_here == 1, save_seconds=0.3)
+    assert stop.value.status == 143 and saved == [1] and signals.in_flight == 3
+    assert re.fullmatch(r" \(0\.5 s grace, 0\.\d s of it left: the chunk in flight needs about 0\.\d s more and a "
+                        r"checkpoint 0\.3 s\)", stop.value.reason), stop.value.reason
+    line = runner.stop_message(stop.value, "the run", 3, 4, 1, 300, "RESUME", "RESTART")
+    assert line.startswith("stopped by SIGTERM (0.5 s grace, ") and "chunk 3 of 4 was running and is lost" in line
     for grace, signals_sent in ((0.0, {0.01: signal.SIGTERM}), (5.0, {0.01: signal.SIGTERM, 0.03: signal.SIGTERM}),
                                 (5.0, {0.01: signal.SIGTERM, 0.03: signal.SIGINT})):
         saved = []
@@ -241,14 +243,15 @@ def test_a_sigterm_whose_grace_cannot_be_met_or_without_one_stops_at_once(capsys
 
 def test_a_chunk_that_overruns_its_grace_is_given_up_when_only_the_checkpoints_share_is_left():
     """A SIGTERM 0.01 s into a chunk that takes 5 s, with a 1 s grace: the loop waits for it, then stops at once
-    when what is left of the grace is what a checkpoint needs: half the grace with none measured, for the first
-    chunk (nothing measured) as for a chunk far slower than the ones before it."""
-    for chunks, at in (([5.0], 0), ([0.05, 0.05, 5.0], 2)):
+    when what is left of the grace is what a checkpoint needs (none written in the call: when the grace is over;
+    one of 0.3 s: 0.3 s before), for the first chunk (nothing measured) as for one far slower than those before."""
+    for chunks, at, due, save_s in (([5.0], 0, lambda *_: False, 0.0), ([0.05, 0.05, 5.0], 2, lambda *_: False, 0.0),
+                                    ([0.05, 0.05, 5.0], 2, lambda run_here, since: run_here == 1, 0.3)):
         with runner.Signals(grace=1.0) as signals:
             with pytest.raises(runner.Stopped) as stop:
-                _loop(signals, _timed_chunks(chunks, {at: {0.01: signal.SIGTERM}}), len(chunks), [])
+                _loop(signals, _timed_chunks(chunks, {at: {0.01: signal.SIGTERM}}), len(chunks), [], due, save_s)
         waited = time.perf_counter() - signals.terminated
-        assert 0.45 <= waited < 0.9 and signals.in_flight == at + 1, waited
+        assert 0.95 - save_s <= waited < 1.3 - save_s and signals.in_flight == at + 1, (waited, save_s)
         assert "the chunk in flight needs about 0.0 s more" in stop.value.reason
 
 

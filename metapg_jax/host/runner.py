@@ -61,9 +61,12 @@ class Signals:
     143), as a SIGTERM without a grace (0), one outside a loop (while a program compiles, between a grid's cells) or a
     second signal does. The estimate, made when the signal comes and again every time ``wait`` looks at the chunk
     (so a chunk that overruns is given up in time): the chunk's remaining time is the median duration of this
-    call's finished chunks (``chunk_seconds``) minus the time since it started (none finished yet: 0, the loop
-    waits as long as the checkpoint's share allows); a checkpoint takes as long as this call's last one
-    (``save_seconds``; none written yet: half the grace is kept for it). A chunk that has ended is checkpointed.
+    call's finished chunks (``chunk_seconds``) minus the time since it started (none finished yet: 0, so the loop
+    waits as long as the grace allows); a checkpoint takes as long as this call's last one (``save_seconds``). With
+    no checkpoint written yet in this call nothing is kept for it: early in a run the replay buffers are nearly
+    empty and a checkpoint costs little, while giving up the chunk loses everything since the run's start; a write
+    that a scheduler's kill cuts short leaves the previous checkpoint as it was (writes are atomic), which is all a
+    stop at once would have left. A chunk that has ended is checkpointed.
 
     Python runs a handler wherever the main thread is, also inside a garbage-collection callback or a
     ``__del__``, where an exception is printed and dropped ("Exception ignored in ..."): so the handler
@@ -120,13 +123,11 @@ class Signals:
         left = self.terminated + self.grace - now
         needs = max(statistics.median(self.chunk_seconds) - (now - self.chunk_started), 0.0) \
             if self.chunk_seconds else 0.0
-        save = self.save_seconds if self.save_seconds is not None else self.grace / 2
+        save = self.save_seconds or 0.0
         if needs + save <= left:
             return None
-        kept = (f"a checkpoint {save:.1f} s" if self.save_seconds is not None else
-                f"{save:.1f} s (half the grace) kept for a checkpoint, none written yet in this call")
         return Stopped(signal.SIGTERM, f" ({self.grace:g} s grace, {max(left, 0.0):.1f} s of it left: the chunk in "
-                                       f"flight needs about {needs:.1f} s more and {kept})")
+                                       f"flight needs about {needs:.1f} s more and a checkpoint {save:.1f} s)")
 
     def __enter__(self):
         for signum in (signal.SIGINT, signal.SIGTERM):
