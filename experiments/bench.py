@@ -289,6 +289,9 @@ def _checkpoint(args: argparse.Namespace, meta: dict) -> int:
     from metapg_jax.host.runner import TERM_GRACE
 
     out = args.out or checkpoint_cost.MARKDOWN
+    if not os.path.exists(out):
+        with open(out, "w") as f:
+            f.write(checkpoint_cost.TITLE)
     meta.pop("repeats")
     meta.update({k: v for k, v in provenance.record().items() if k in ("commit", "dirty")})
     meta["conditions"] = f"load average {os.getloadavg()[0]:.1f} when it started" + (
