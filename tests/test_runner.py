@@ -255,6 +255,36 @@ def test_a_chunk_that_overruns_its_grace_is_given_up_when_only_the_checkpoints_s
         assert "the chunk in flight needs about 0.0 s more" in stop.value.reason
 
 
+def test_a_signal_is_handled_at_once_while_a_chunk_holds_the_thread_that_runs_it():
+    """JAX runs a program with host callbacks (the C engine on a CPU) in the thread that calls it, in C, where no
+    Python signal handler runs until it returns: the loop runs each chunk in a thread of its own, so the main
+    thread handles a SIGTERM at once (here: a chunk that holds its thread 2 s with SIGTERM blocked in it; without
+    the grace the stop comes within a fraction of a second, with it the grace is counted from the signal)."""
+    import os
+    import threading
+
+    def step(state):
+        assert threading.current_thread() is not threading.main_thread()
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})  # as a thread inside a C call: no handler here
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(2.0)
+        finally:
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
+        return state + 1, {}
+
+    for grace in (0.0, 5.0):
+        t = time.perf_counter()
+        with runner.Signals(grace=grace) as signals:
+            if grace:
+                _, status, _ = _loop(signals, step, 1, [])
+                assert status == 143 and signals.terminated - t < 0.5
+            else:
+                with pytest.raises(runner.Stopped):
+                    _loop(signals, step, 1, [])
+                assert time.perf_counter() - t < 1.0
+
+
 def test_a_grace_must_be_a_finite_number_of_seconds():
     for bad in (-1.0, float("nan"), float("inf")):
         with pytest.raises(ValueError, match="--term-grace must be a finite number of seconds >= 0"):

@@ -17,6 +17,7 @@ import contextlib
 import signal
 import statistics
 import sys
+import threading
 import time
 from typing import Any, Callable
 
@@ -165,6 +166,31 @@ class Signals:
         if self.stopped is not None:
             raise self.stopped
 
+    def call(self, fn: Callable[..., Any], *args: Any) -> Any:
+        """``fn(*args)`` run in a thread of its own and waited for here in short sleeps (signal handlers run
+        meanwhile). A chunk is dispatched so: JAX runs a program with host callbacks (the MuJoCo C engine's, on a
+        CPU) in the thread that calls it, which would hold this one, and with it every signal, for the whole chunk.
+        A stop raised here leaves the thread to end with its chunk; the process exits when it has (XLA cannot cancel
+        a computation, and tearing the interpreter down under a host callback crashes it)."""
+        done, finished = {}, threading.Event()
+
+        def target():
+            try:
+                done["value"] = fn(*args)
+            except BaseException as err:  # noqa: BLE001 - raised again in this thread
+                done["error"] = err
+            finally:
+                finished.set()
+
+        threading.Thread(target=target, name="metapg-chunk").start()
+        # A signal interrupts the wait (its handler runs here); the timeout is the grace's watch. (Not the thread's
+        # join: a stop raised inside it marks the running thread as ended, and the interpreter's exit then crashes.)
+        while not finished.wait(0.25):
+            self.check()
+        if "error" in done:
+            raise done["error"]
+        return done["value"]
+
     def wait(self, tree):
         """Returns ``tree`` once every array in it is computed (signal handlers run meanwhile)."""
         import jax
@@ -240,7 +266,7 @@ def run_chunks(step: Callable[[Any], tuple[Any, Any]], state: Any, *, start: int
         for chunk in range(start, num_chunks):
             signals.in_flight = chunk + 1
             started = signals.chunk_started = time.perf_counter()
-            state, metrics = step(state)
+            state, metrics = signals.call(step, state)
             metrics = fetch(signals.wait(metrics))
             chunks_run += 1
             signals.chunk_started = None  # it has ended: a SIGTERM from here on checkpoints it
