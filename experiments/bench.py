@@ -131,8 +131,9 @@ def main(argv: list[str] | None = None) -> int:
                         "modern-preset cell (experiments/benchmarks/checkpoint.py), replay buffers empty and full")
     p.add_argument("--checkpoint-writes", type=int, default=3, help="writes per measurement of --checkpoint (default 3)")
     p.add_argument("--checkpoint-sigterm", action="store_true",
-                   help="the main job sent SIGTERM a second into its 4th chunk, before its first checkpoint, with "
-                        "--term-grace 0 and the default: its exit, its checkpoint and the training it lost")
+                   help="the main job sent SIGTERM in its 4th chunk, before its first checkpoint (a second into the "
+                        "chunk with --term-grace 0 and the default, and 10 s before its end with the default): its "
+                        "exit, its checkpoint and the training it lost")
     p.add_argument("--note", default="", help="a line on the machine's conditions, written with --checkpoint's tables")
     p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
     args = p.parse_args(argv)
@@ -309,9 +310,10 @@ def _checkpoint(args: argparse.Namespace, meta: dict) -> int:
         meta["json"] = args.json or os.path.splitext(out)[0] + "-sigterm.json"
         rows, steps = [], 150_000
         with tempfile.TemporaryDirectory(prefix="metapg-sigterm-cache-") as cache:
-            for grace in (0.0, TERM_GRACE):
-                print(f"main job, SIGTERM with --term-grace={grace:g} ...", flush=True)
-                rows.append(checkpoint_cost.measure_sigterm(grace, steps, after_chunks=3, delay=1.0, cache=cache))
+            # A second into the chunk (the most it can have left), and with about 10 s of it to go.
+            for grace, when in ((0.0, {"into": 1.0}), (TERM_GRACE, {"into": 1.0}), (TERM_GRACE, {"left": 10.0})):
+                print(f"main job, SIGTERM with --term-grace={grace:g} ({when}) ...", flush=True)
+                rows.append(checkpoint_cost.measure_sigterm(grace, steps, after_chunks=3, cache=cache, **when))
                 print(f"  {rows[-1]}", flush=True)
                 runfiles.write_json_atomic(meta["json"], {"meta": meta, "rows": rows})
         write_section(out, "checkpoint-sigterm", checkpoint_cost.sigterm_markdown(rows, meta, steps))

@@ -7,9 +7,9 @@ command line, built as ``experiments.run`` builds it; the median of a few writes
 new run holds them (empty) and once full, every row holding random values (the most a checkpoint holds, and the least
 compressible: orbax compresses what it writes, so an empty buffer costs next to nothing).
 
-``measure_sigterm``: the README's main job in a fresh process, sent SIGTERM a second into a chunk (after a few
-chunks and before its first checkpoint, as in a preempted run's first minutes), with a ``--term-grace``: when it
-exited, with which status, what its checkpoint holds and how many seconds of training it lost.
+``measure_sigterm``: the README's main job in a fresh process, sent SIGTERM during a chunk (after a few chunks and
+before its first checkpoint, as in a preempted run's first minutes), with a ``--term-grace``: when it exited, with
+which status, what its checkpoint holds and how many seconds of training it lost.
 """
 
 from __future__ import annotations
@@ -88,11 +88,13 @@ def measure_checkpoint(label: str, argv: list[str], writes: int = 3) -> dict:
     return row
 
 
-def measure_sigterm(grace: float, steps: int, after_chunks: int, delay: float, cache: str) -> dict:
-    """The main job (``MAIN_JOB``, ``--steps``) in a fresh process with ``--term-grace=grace``, sent SIGTERM ``delay``
-    seconds after its ``after_chunks``-th chunk is recorded. ``lost_s``: the training before the signal that no
-    checkpoint holds (the recorded chunks after the checkpoint's, and the part of the chunk in flight before the
-    signal unless the checkpoint holds that chunk); ``exit_after_s``: signal to exit."""
+def measure_sigterm(grace: float, steps: int, after_chunks: int, cache: str, into: float | None = None,
+                    left: float | None = None) -> dict:
+    """The main job (``MAIN_JOB``, ``--steps``) in a fresh process with ``--term-grace=grace``, sent SIGTERM during the
+    chunk after its ``after_chunks``-th: ``into`` seconds after that chunk was recorded, or (``left``) when the chunk
+    in flight has about ``left`` seconds to go at the median of the recorded chunks. ``lost_s``: the training before
+    the signal that no checkpoint holds (the recorded chunks after the checkpoint's, and the part of the chunk in
+    flight before the signal unless the checkpoint holds that chunk); ``exit_after_s``: signal to exit."""
     from metapg_jax.host.checkpoint import saved_steps
 
     with tempfile.TemporaryDirectory(prefix="metapg-sigterm-") as tmp:
@@ -111,6 +113,8 @@ def measure_sigterm(grace: float, steps: int, after_chunks: int, delay: float, c
             time.sleep(0.02)
         if seen is None:
             raise RuntimeError(f"the main job ended before {after_chunks} chunks: {proc.stderr.read()[-2000:]}")
+        median = statistics.median(r["chunk_seconds"] for r in rows)
+        delay = into if into is not None else max(median - left, 1.0)
         time.sleep(max(seen + delay - time.perf_counter(), 0.0))
         sent = time.perf_counter()
         proc.send_signal(signal.SIGTERM)
@@ -162,9 +166,10 @@ def sigterm_markdown(rows: list[dict], meta: dict, steps: int) -> str:
              f"`python -m experiments.bench --checkpoint-sigterm`: {meta['machine']}, JAX {meta['jax']}, "
              f"{meta['backend']}; {meta['conditions']}. `python -m experiments.run {' '.join(MAIN_JOB)} "
              f"--steps={steps} --term-grace=G` in a fresh process (its programs from a compile cache the first run "
-             f"filled), sent SIGTERM a moment after its chunk {rows[0]['chunks_before_signal']} was recorded, before "
-             f"its first checkpoint (the default 5-minute cadence). Lost: the seconds of training before the "
-             f"signal that no checkpoint holds. Raw numbers: `{meta['json']}`.", "",
+             f"filled), sent SIGTERM during chunk {rows[0]['chunks_before_signal'] + 1}, before its first checkpoint "
+             f"(the default 5-minute cadence). Lost: the seconds of training before the signal that no checkpoint "
+             f"holds. Exit: when the process ended (a stop at once prints its line at once, but the process ends "
+             f"when the chunk in flight's computation does). Raw numbers: `{meta['json']}`.", "",
              "| --term-grace (s) | median chunk (s) | signal, s into the chunk | exit status | exit, s after the signal "
              "| checkpoint holds (chunks) | training lost (s) |", "|---|---|---|---|---|---|---|"]
     for r in rows:
