@@ -53,14 +53,15 @@ class Stopped(Exception):
 class Signals:
     """How a host loop stops. The first Ctrl-C sets ``requested``: the loop finishes the chunk in
     flight, checkpoints and exits 130. A second Ctrl-C raises ``Stopped`` at once (exit 130): the chunk in
-    flight cannot be saved (the state it started from was donated to it). ``wait`` blocks on a chunk's
-    results in short sleeps, so that a signal is handled while a chunk runs, not only after it.
+    flight cannot be saved (the state it started from was donated to it). ``call`` starts a chunk from a thread of
+    its own and ``wait`` blocks on its results, both in short sleeps, so that a signal is handled while a chunk
+    runs, not only after it.
 
     A first SIGTERM while a chunk loop runs (``looping``), with a ``grace`` of more than 0 seconds, sets
     ``terminated``: the loop finishes the chunk in flight, checkpoints it and exits 143, if the chunk's expected
     remaining time plus a checkpoint's fit in what is left of the grace, else it raises ``Stopped`` at once (exit
     143), as a SIGTERM without a grace (0), one outside a loop (while a program compiles, between a grid's cells) or a
-    second signal does. The estimate, made when the signal comes and again every time ``wait`` looks at the chunk
+    second signal does. The estimate, made when the signal comes and again every time the loop looks at the chunk
     (so a chunk that overruns is given up in time): the chunk's remaining time is the median duration of this
     call's finished chunks (``chunk_seconds``) minus the time since it started (none finished yet: 0, so the loop
     waits as long as the grace allows); a checkpoint takes as long as this call's last one (``save_seconds``). With
