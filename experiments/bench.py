@@ -7,6 +7,8 @@
     python -m experiments.bench --env-speed           # env stepping alone: MJX, the C engine, its limits
     python -m experiments.bench --sweep               # a 32-setting sweep as one program vs 32 separate runs
     python -m experiments.bench --main-job            # the README's main job: cold compile, first 60k steps
+    python -m experiments.bench --checkpoint          # a checkpoint's seconds and bytes: main job, 10-seed modern cell
+    python -m experiments.bench --checkpoint-sigterm  # the main job sent SIGTERM: --term-grace 0 vs the default
 
 For every (task, method, preset, seeds) it runs a fresh subprocess (so peak
 memory and compile caches are its own) that measures, in one process:
@@ -40,8 +42,10 @@ import os
 import platform
 import subprocess
 import sys
+import tempfile
 import time
 
+from experiments.benchmarks import checkpoint as checkpoint_cost
 from experiments.benchmarks.env_speed import env_speed_markdown, measure_env_speed
 from experiments.benchmarks.main_job import main_job_markdown, measure_main_job
 from experiments.benchmarks.records import BENCH_DIR, _date, _variant, write_section
@@ -91,7 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--target-steps", type=int, default=None,
                    help="env steps per seed per timed call (default: 3000 pendulum, 600 MuJoCo tasks)")
     p.add_argument("--quick", action="store_true", help="pendulum only, seeds 1 and 8")
-    p.add_argument("--out", default=os.path.join(BENCH_DIR, "BENCHMARKS.md"))
+    p.add_argument("--out", default=None, help=f"the tables (default {BENCH_DIR}/BENCHMARKS.md; "
+                                               f"{checkpoint_cost.MARKDOWN} with --checkpoint or --checkpoint-sigterm)")
     p.add_argument("--json", default=None,
                    help=f"raw numbers (default {BENCH_DIR}/benchmarks.json; {BENCH_DIR}/benchmarks_env_speed.json "
                         "with --env-speed)")
@@ -121,6 +126,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--main-job-steps", type=int, default=60_000, help="env steps per seed of --main-job (default 60000)")
     p.add_argument("--main-job-physics", default="default,mjx",
                    help="comma-separated --physics values of --main-job ('default' passes none; default: default,mjx)")
+    p.add_argument("--checkpoint", action="store_true",
+                   help="a checkpoint's seconds and bytes (median of --checkpoint-writes) for the main job and a 10-seed "
+                        "modern-preset cell (experiments/benchmarks/checkpoint.py), replay buffers empty and full")
+    p.add_argument("--checkpoint-writes", type=int, default=3, help="writes per measurement of --checkpoint (default 3)")
+    p.add_argument("--checkpoint-sigterm", action="store_true",
+                   help="the main job sent SIGTERM in its 4th chunk, before its first checkpoint (a second into the "
+                        "chunk with --term-grace 0 and the default, and 10 s before its end with the default): its "
+                        "exit, its checkpoint and the training it lost")
+    p.add_argument("--note", default="", help="a line on the machine's conditions, written with --checkpoint's tables")
     p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
     args = p.parse_args(argv)
     if args.one:
@@ -170,6 +184,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.main_job_steps <= 0:
         print(f"error: --main-job-steps must be positive, got {args.main_job_steps}", file=sys.stderr)
         return 2
+    if args.checkpoint_writes <= 0:
+        print(f"error: --checkpoint-writes must be positive, got {args.checkpoint_writes}", file=sys.stderr)
+        return 2
     try:
         parse_list(args.main_job_physics, ("default", *envs.PHYSICS_CHOICES), "physics")
     except ValueError as err:
@@ -187,6 +204,9 @@ def main(argv: list[str] | None = None) -> int:
     meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "backend": jax.default_backend(),
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
             "repeats": args.repeats, "json": json_path}
+    if args.checkpoint or args.checkpoint_sigterm:
+        return _checkpoint(args, meta)
+    args.out = args.out or os.path.join(BENCH_DIR, "BENCHMARKS.md")
     if args.sweep:
         json_path = args.json or os.path.join(BENCH_DIR, "benchmarks_sweep.json")
         meta["json"] = json_path
@@ -261,6 +281,43 @@ def main(argv: list[str] | None = None) -> int:
     if failed:
         print(f"error: {len(failed)} of {len(specs)} measurements failed: {'; '.join(failed)}", file=sys.stderr)
         return 1
+    return 0
+
+
+def _checkpoint(args: argparse.Namespace, meta: dict) -> int:
+    """``--checkpoint`` and ``--checkpoint-sigterm``: their measurements, JSON and sections of their markdown."""
+    from metapg_jax.host import provenance, runfiles
+    from metapg_jax.host.runner import TERM_GRACE
+
+    out = args.out or checkpoint_cost.MARKDOWN
+    if not os.path.exists(out):
+        with open(out, "w") as f:
+            f.write(checkpoint_cost.TITLE)
+    meta.pop("repeats")
+    meta.update({k: v for k, v in provenance.record().items() if k in ("commit", "dirty")})
+    meta["conditions"] = f"load average {os.getloadavg()[0]:.1f} when it started" + (
+        f"; {args.note}" if args.note else "")
+    if args.checkpoint:
+        meta["json"] = args.json or os.path.splitext(out)[0] + ".json"
+        rows = []
+        for label, argv in checkpoint_cost.CASES.items():
+            print(f"checkpoint of the {label} ...", flush=True)
+            rows.append(checkpoint_cost.measure_checkpoint(label, argv, args.checkpoint_writes))
+            print(f"  empty {rows[-1]['empty']}, full {rows[-1]['full']}", flush=True)
+            runfiles.write_json_atomic(meta["json"], {"meta": meta, "rows": rows})
+        write_section(out, "checkpoint-cost", checkpoint_cost.checkpoint_markdown(rows, meta, TERM_GRACE))
+    if args.checkpoint_sigterm:
+        meta["json"] = args.json or os.path.splitext(out)[0] + "-sigterm.json"
+        rows, steps = [], 150_000
+        with tempfile.TemporaryDirectory(prefix="metapg-sigterm-cache-") as cache:
+            # A second into the chunk (the most it can have left), and with about 10 s of it to go.
+            for grace, when in ((0.0, {"into": 1.0}), (TERM_GRACE, {"into": 1.0}), (TERM_GRACE, {"left": 10.0})):
+                print(f"main job, SIGTERM with --term-grace={grace:g} ({when}) ...", flush=True)
+                rows.append(checkpoint_cost.measure_sigterm(grace, steps, after_chunks=3, cache=cache, **when))
+                print(f"  {rows[-1]}", flush=True)
+                runfiles.write_json_atomic(meta["json"], {"meta": meta, "rows": rows})
+        write_section(out, "checkpoint-sigterm", checkpoint_cost.sigterm_markdown(rows, meta, steps))
+    print(f"wrote {out}", flush=True)
     return 0
 
 

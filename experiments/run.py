@@ -39,9 +39,10 @@ then holds the new budget and an ``extensions`` list; the shorter run's summary 
 Exit status: 0 done; 2 bad input (one ``error:`` line, before anything
 compiles); 3 non-finite parameters (the run stops, the last good checkpoint
 stays); 130 interrupted by Ctrl-C (after finishing and checkpointing the chunk
-in flight; ``--resume`` continues; a second Ctrl-C stops at once, as SIGTERM does); 143 stopped by
-SIGTERM (at once: the chunk in flight is lost, the last checkpoint stays). A run stopped before its
-first checkpoint says so in one line, with the command that starts it again.
+in flight; ``--resume`` continues; a second Ctrl-C stops at once); 143 stopped by SIGTERM: after
+finishing and checkpointing the chunk in flight where both fit in ``--term-grace`` seconds (default 25;
+``--resume`` continues), else at once (the chunk in flight is lost, the last checkpoint stays). A run
+stopped before its first checkpoint says so in one line, with the command that starts it again.
 """
 
 from __future__ import annotations
@@ -56,10 +57,11 @@ from metapg_jax import config as config_lib
 from metapg_jax import strategy
 from metapg_jax.host import compile_cache
 from metapg_jax.host.processes import maybe_initialize_distributed
-from metapg_jax.host.runner import restart_command
+from metapg_jax.host.runner import TERM_GRACE, restart_command
 
-from experiments.training.args import (RUN_ARGS, check_devices, check_new_out, config_from_run_args, flags,
-                                       preload_plugins, resolved_run_args, resume_args, run_args, run_label)
+from experiments.training.args import (RUN_ARGS, add_stop_options, check_devices, check_new_out, check_stop_options,
+                                       config_from_run_args, flags, preload_plugins, resolved_run_args, resume_args,
+                                       run_args, run_label)
 from experiments.training.finish import finalize
 from experiments.training.memory import abstract_keys, check_fits, state_bytes
 
@@ -117,6 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
                         "--checkpoint-minutes have passed, and at the end")
     p.add_argument("--checkpoint-minutes", type=float, default=5.0,
                    help="with --checkpoint-every=0: minimum minutes between checkpoints (default 5)")
+    add_stop_options(p)
     p.add_argument("--compile-cache", default=None, metavar="DIR|off",
                    help="keep compiled programs on disk for the next run or resume (default: "
                         "$JAX_COMPILATION_CACHE_DIR, else ~/.cache/metapg-jax/xla; 'off' compiles afresh; "
@@ -148,8 +151,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
     """Everything that can fail on user input, before anything compiles: (config, run args, out, resume,
     the stored budget when the resume extends it, else None)."""
     extend_from = None
-    if args.checkpoint_every < 0 or not args.checkpoint_minutes > 0:
-        raise ValueError("--checkpoint-every must be >= 0 and --checkpoint-minutes > 0")
+    check_stop_options(args.checkpoint_every, args.checkpoint_minutes, args.term_grace)
     if args.tensorboard:
         from metapg_jax.host import tb_events
 
@@ -211,17 +213,17 @@ def main(argv: list[str] | None = None) -> int:
     return run(cfg, a, out, trainer=trainer, resume=resume, overwrite=args.overwrite, plot=not args.no_plot,
                quiet=args.quiet, checkpoint_every=args.checkpoint_every, checkpoint_minutes=args.checkpoint_minutes,
                extend_from=extend_from, tensorboard=args.tensorboard, wandb=wandb,
-               restart=restart_command("experiments.run", argv))
+               restart=restart_command("experiments.run", argv), term_grace=args.term_grace)
 
 
 def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwrite: bool = False,
         plot: bool = True, quiet: bool = False, checkpoint_every: int = 0, checkpoint_minutes: float = 5.0,
         extend_from: int | None = None, tensorboard: bool = False, wandb: dict | None = None,
-        restart: str | None = None, trainer=None) -> int:
+        restart: str | None = None, trainer=None, term_grace: float = TERM_GRACE) -> int:
     """Trains the run (``prepare``'s outputs) with the command's loggers and files (``driver.run``); returns the exit
     status. ``wandb``: ``wandb_runs.WandB``'s options (None: no W&B); ``restart``: the command that starts it again
     (printed if it is stopped before its first checkpoint); ``trainer``: the config's (``make_train``), if built
-    already."""
+    already; ``term_grace``: ``--term-grace``."""
     from metapg_jax.host import driver, loggers, tb_events, wandb_runs
 
     name = run_label(cfg)
@@ -233,7 +235,7 @@ def run(cfg: config_lib.Config, a: dict, out: str, resume: bool = False, overwri
 
     return driver.run(cfg, a, out, loggers=reports, resume=resume, extend_from=extend_from, overwrite=overwrite,
                       checkpoint_every=checkpoint_every, checkpoint_minutes=checkpoint_minutes, finalize=finish,
-                      trainer=trainer, label=name, restart=restart)
+                      trainer=trainer, label=name, restart=restart, term_grace=term_grace)
 
 
 if __name__ == "__main__":

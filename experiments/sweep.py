@@ -24,7 +24,8 @@ from its latest checkpoint (a finished group is skipped). A setting whose parame
 non-finite keeps running (the others are unaffected) and is reported, not ranked.
 
 Exit status: 0 done; 2 bad input (one ``error:`` line, before anything compiles); 130 interrupted
-(checkpointed; ``--resume`` continues).
+(checkpointed; ``--resume`` continues); 143 stopped by SIGTERM (the group's chunk in flight checkpointed
+within ``--term-grace``, else at once, as ``experiments.run``).
 """
 
 from __future__ import annotations
@@ -70,6 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--resume", default=None, metavar="SWEEP_DIR", help="continue the sweep in SWEEP_DIR")
     p.add_argument("--checkpoint-minutes", type=float, default=5.0,
                    help="minimum minutes between checkpoints of a group (and at its end; default 5)")
+    training_args.add_stop_options(p, "; for the group that runs")
     p.add_argument("--compile-cache", default=None, metavar="DIR|off", help="as experiments.run --compile-cache")
     p.add_argument("--no-plot", action="store_true", help="skip sweep.png")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -194,8 +196,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     args = build_parser().parse_args(argv)
     try:
-        if args.checkpoint_minutes <= 0:
-            raise ValueError("--checkpoint-minutes must be positive")
+        training_args.check_stop_options(0, args.checkpoint_minutes, args.term_grace)
         a, grid, out = prepare(args)
         settings, configs, groups, env = plan(a, grid)
         check_fits(a, configs, groups, env)
@@ -280,10 +281,11 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
         # The earlier groups are finished: --resume skips them and starts this one afresh.
         lost = (f"chunk {in_flight} of {cfg.num_chunks} of group {g + 1} was running and is lost"
                 if in_flight is not None else f"group {g + 1} had started no chunk")
-        return f"stopped by {stop.who}: {lost} (no checkpoint yet); groups 1-{g} are done; continue with: {resume}"
+        return (f"stopped by {stop.who}{stop.reason}: {lost} (no checkpoint yet); groups 1-{g} are done; continue "
+                f"with: {resume}")
 
     chunk_loop = runner.ChunkLoop(f"group {g + 1}", lambda: (checkpointer.steps() or [None])[-1], cfg.num_chunks,
-                                  cfg.run.eval_every, resume, restart, line=line)
+                                  cfg.run.eval_every, resume, restart, line=line, grace=args.term_grace)
     with chunk_loop:  # a stop while compiling or in the loop: the stop line, chunk_loop.status
         chunk_loop.keep(checkpointer)
         sweep = Sweep(cfg, env, tuple(group["batched"]))

@@ -162,19 +162,26 @@ def run_subprocess(args, **kw):
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
 
 
+def wait_for_chunks(proc, out, chunks, seeds=2):
+    """Returns once the run ``proc`` writes into ``out`` has ``chunks`` chunks of ``seeds`` seeds in its
+    metrics.jsonl (fails the test if it ends before, or after 300 s)."""
+    metrics = os.path.join(out, "metrics.jsonl")
+    deadline = time.time() + 300
+    while time.time() < deadline:
+        if os.path.exists(metrics) and sum(1 for _ in open(metrics)) >= chunks * seeds:
+            return
+        if proc.poll() is not None:
+            pytest.fail("the run ended before it could be stopped: " + proc.stderr.read()[-2000:])
+        time.sleep(0.05)
+    pytest.fail(f"the run did not write {chunks} chunks in 300 s")
+
+
 def sigkill_resume_and_compare(tmp_path, args, chunks, resume_args=()):
     """Runs ``args`` (2 seeds, a checkpoint per chunk) in a subprocess, SIGKILLs it once 2 chunks are in
     metrics.jsonl, resumes it in another process, and asserts it equals the uninterrupted run."""
     out = str(tmp_path / "killed")
     proc = run_subprocess(args + ["--out", out])
-    metrics = os.path.join(out, "metrics.jsonl")
-    deadline = time.time() + 300
-    while time.time() < deadline:
-        if os.path.exists(metrics) and sum(1 for _ in open(metrics)) >= 4:  # 2 chunks x 2 seeds
-            break
-        if proc.poll() is not None:
-            pytest.fail("the run ended before it could be killed: " + proc.stderr.read()[-2000:])
-        time.sleep(0.05)
+    wait_for_chunks(proc, out, 2)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     from experiments import run

@@ -1,4 +1,5 @@
-"""experiments.bench's report writing (the measurements themselves are not unit-tested: timings)."""
+"""experiments.bench's report writing (the measurements themselves are not unit-tested: timings; a checkpoint's bytes
+are)."""
 
 import json
 
@@ -88,7 +89,8 @@ def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
                           (["--seeds", "1,x"], "--seeds must be comma-separated positive integers"),
                           (["--seeds", "0"], "--seeds must be comma-separated positive integers"),
                           (["--target-steps", "0"], "--target-steps must be positive"),
-                          (["--physics", "mjx,bullet"], "unknown physics 'bullet'; valid: mjx, mujoco")):
+                          (["--physics", "mjx,bullet"], "unknown physics 'bullet'; valid: mjx, mujoco"),
+                          (["--checkpoint", "--checkpoint-writes", "0"], "--checkpoint-writes must be positive")):
         assert bench.main([*argv, "--out", out, "--json", str(tmp_path / "b.json")]) == 2, argv
         assert message in capsys.readouterr().err
     assert not (tmp_path / "B.md").exists() and not (tmp_path / "b.json").exists()
@@ -129,3 +131,28 @@ def test_every_grid_method_is_a_strategy_the_benchmark_can_measure():
         cfg = validate(make_config("hopper", spec["method"], student=spec["student"], overrides=spec["overrides"]))
         assert cfg.student == STUDENT_OF.get(name, "ddpg") and spec["label"] == name
     assert grid_strategy("td3-pink")["overrides"] == {"noise.kind": "pink", "noise.stddev": "0.1"}
+
+
+def test_a_checkpoints_cost_is_measured_empty_and_full_and_tabled_against_the_grace(tmp_path):
+    """A tiny run's checkpoints (2 writes each): full buffers hold every row at full entropy, so they take far more
+    bytes on disk than empty ones (compressed to almost nothing); the table names each run and the verdict."""
+    from experiments.benchmarks import checkpoint
+
+    argv = ["--env=pendulum", "--method=ddpg", "--seeds=2", "--steps=20000", "--set", "ddpg.hidden=16,16"]
+    row = checkpoint.measure_checkpoint("tiny", argv, writes=2)
+    assert row["buffer_capacity"] == 20_000 and row["seeds"] == 2 and row["physics"] == "mjx"
+    assert len(row["empty"]["seconds"]) == len(row["full"]["seconds"]) == 2
+    rows_bytes = 2 * 20_000 * (3 + 1 + 1 + 3 + 1 + 1) * 4  # obs, action, reward, next obs, terminated, truncated
+    assert row["empty"]["bytes"] < 0.1 * rows_bytes < 0.9 * rows_bytes < row["full"]["bytes"] < 1.5 * row["state_bytes"]
+    meta = {"date": "d", "commit": "abcdef0123", "machine": "m", "jax": "j", "backend": "cpu", "conditions": "c",
+            "json": "x.json"}
+    slow = {**row, "case": "slow", "full": {**row["full"], "median_s": 30.0}}
+    md = checkpoint.checkpoint_markdown([row, slow], meta, 25.0)
+    assert "| tiny: `--env=pendulum --method=ddpg --seeds=2" in md and "(d, commit abcdef0)" in md
+    assert md.endswith("The costliest, slow with full buffers, takes 30.0 s: more than the default --term-grace of "
+                       "25 s.")
+    assert checkpoint.checkpoint_markdown([row], meta, 25.0).endswith("within the default --term-grace of 25 s.")
+    sigterm = [{"grace_s": 0.0, "status": 143, "chunks_before_signal": 3, "signal_into_chunk_s": 1.0, "chunk_s": 14.2,
+                "checkpointed_chunks": 0, "exit_after_s": 0.6, "lost_s": 43.5, "last_line": "stopped by SIGTERM: x"}]
+    md = checkpoint.sigterm_markdown(sigterm, meta, 150_000)
+    assert "| 0 | 14.2 | 1.0 | 143 | 0.6 | none | 43.5 |" in md and "- `--term-grace=0`: stopped by SIGTERM: x" in md

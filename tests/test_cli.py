@@ -12,7 +12,8 @@ import pytest
 from experiments import run
 from experiments.training import args as training_args
 from metapg_jax.host.driver import record_extension
-from tests.helpers import TINY_BUFFER, TINY_RUN
+from metapg_jax.host.checkpoint import saved_steps
+from tests.helpers import TINY_BUFFER, TINY_RUN, assert_same_run, run_subprocess, wait_for_chunks
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -54,6 +55,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     (["--set", "ddpg.final_init=nan"], "ddpg.final_init must be a finite number >= 0"),
     (["--compile-cache", os.path.abspath(__file__)], "is a file, not a folder; pass --compile-cache DIR or off"),
     (["--compile-cache", ""], "--compile-cache needs a folder (or 'off')"),
+    (["--term-grace=-1"], "--term-grace must be a finite number of seconds >= 0 (0: a SIGTERM stops at once), got -1"),
+    (["--term-grace=nan"], "--term-grace must be a finite number of seconds >= 0"),
+    (["--checkpoint-minutes=0"], "--checkpoint-minutes must be > 0, got 0"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, message, capsys):
     assert run.main(argv) == 2
@@ -185,13 +189,13 @@ def test_a_run_too_large_for_memory_is_refused_before_compiling(tmp_path, capsys
 
 
 @pytest.mark.slow
-def test_sigterm_before_the_first_checkpoint_says_nothing_was_saved(tmp_path):
-    """SIGTERM while the first chunk runs: exit 143 at once, with one line saying that nothing can be
-    resumed and the command that starts the run again."""
+def test_sigterm_without_a_grace_before_the_first_checkpoint_says_nothing_was_saved(tmp_path):
+    """SIGTERM with --term-grace=0 while the first chunk runs: exit 143 at once, with one line saying that nothing
+    can be resumed and the command that starts the run again."""
     import signal
 
     out = tmp_path / "run"
-    argv = [*TINY_RUN, *TINY_BUFFER, "--steps=270000", "--quiet", "--no-plot", "--out", str(out)]
+    argv = [*TINY_RUN, *TINY_BUFFER, "--steps=270000", "--term-grace=0", "--quiet", "--no-plot", "--out", str(out)]
     proc = subprocess.Popen([sys.executable, "-m", "experiments.run", *argv], cwd=ROOT, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, env={**os.environ, "JAX_PLATFORMS": "cpu"})
     for line in proc.stdout:
@@ -207,6 +211,33 @@ def test_sigterm_before_the_first_checkpoint_says_nothing_was_saved(tmp_path):
                     r"--env=pendulum", line), line
     assert line.endswith(f"--out {out} --overwrite")
     assert not any((out / "checkpoints").iterdir()) if (out / "checkpoints").exists() else True
+
+
+@pytest.mark.slow
+def test_sigterm_before_the_first_checkpoint_checkpoints_the_chunk_in_flight_and_resumes_to_the_same_numbers(
+        tmp_path):
+    """SIGTERM once a run (12 chunks of about 0.3 s, the default 5-minute cadence: no checkpoint before its end) has
+    recorded 2 chunks: within the default grace it finishes the chunk in flight, checkpoints it, exits 143 with the
+    line that says how to resume, and ``--resume`` ends with the numbers of an uninterrupted run, bit for bit."""
+    import signal
+
+    args = [*TINY_RUN, *TINY_BUFFER, "--steps=3600"]
+    out = str(tmp_path / "stopped")
+    proc = run_subprocess(args + ["--out", out])
+    wait_for_chunks(proc, out, 2)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err[-2000:]
+    done = saved_steps(os.path.join(out, "checkpoints"))
+    assert len(done) == 1 and 2 <= done[0] < 12, done  # the one checkpoint: the stop's
+    assert len(open(os.path.join(out, "metrics.jsonl")).readlines()) == 2 * done[0]
+    line = err.strip().splitlines()[-1]
+    assert re.fullmatch(rf"stopped by SIGTERM after \d+\.\d s of its 25 s grace: checkpointed after chunk {done[0]} of "
+                        rf"12; continue with: python -m experiments.run --resume {re.escape(out)}", line), line
+    assert run.main(["--resume", out, "--quiet", "--no-plot"]) == 0
+    full = str(tmp_path / "full")
+    assert run.main(args + ["--out", full]) == 0
+    assert_same_run(full, out)
 
 
 def test_a_resume_keeps_the_stored_engine(tmp_path):

@@ -82,10 +82,33 @@ def test_an_interrupted_run_closes_its_loggers_without_finishing(tmp_path):
     assert [c[0] for c in logger.calls] == ["start", "chunk", "checkpoint", "close"]  # checkpointed, then stopped
 
 
+@pytest.mark.slow
+def test_a_sigterm_in_the_last_chunk_checkpoints_it_exits_143_and_the_resume_only_finishes(tmp_path):
+    """A SIGTERM while the last chunk is recorded: checkpointed, exit 143, the loggers closed unfinished (the summary
+    is the resume's); the resume trains nothing and finishes the run."""
+    cfg, a = run_args(600)
+    out = str(tmp_path / "run")
+    logger, seen = Recording(), []
+
+    def sigterm_in_the_last_chunk(rows, cycles):
+        seen.append(rows)
+        if len(seen) == 2:
+            signal.raise_signal(signal.SIGTERM)
+
+    assert driver.run(cfg, a, out, loggers=[logger, Callback(chunk=sigterm_in_the_last_chunk)]) == 143
+    assert [c[0] for c in logger.calls] == ["start", "chunk", "chunk", "checkpoint", "close"]
+    assert not os.path.exists(os.path.join(out, "summary.json"))
+    logger = Recording()
+    assert driver.run(cfg, a, out, loggers=[logger], resume=True) == 0
+    assert [c[0] for c in logger.calls] == ["start", "finish", "close"] and logger.calls[0][-1] == 2
+    assert logger.calls[1][1]["resumed_from_chunk"] == 2
+
+
 @pytest.mark.parametrize("kwargs, message", [
     ({"checkpoint_every": -1}, "checkpoint_every must be >= 0 and checkpoint_minutes > 0, got -1 and 5.0"),
     ({"checkpoint_minutes": 0}, "checkpoint_every must be >= 0 and checkpoint_minutes > 0, got 0 and 0"),
     ({"extend_from": 300}, "extend_from extends a stored run: it needs resume=True"),
+    ({"term_grace": -1}, "term_grace must be a finite number of seconds >= 0"),
 ])
 def test_bad_arguments_are_refused_before_anything_is_written(kwargs, message, tmp_path):
     cfg, a = run_args(600)

@@ -53,6 +53,11 @@ def test_a_spec_writes_the_command_line_the_grids_recorded():
         "--env=pendulum", "--method=meta", "--teacher=independent", "--preset=tuned", "--seeds=10", "--seed=4000"]
     assert "--steps=900000" in grid_cells.cell_argv(tuned, "runs/y", "extend")
     assert method("ddpg", "noise.stddev=0.1", noise="normal") == METHODS["td3-normal"]
+    # How the grid runs its cells: only what is not a default is written (a recorded line keeps its form).
+    how = GridRun("runs", "results", quiet=True, checkpoint_minutes=10, term_grace=50)
+    assert how.run_options() == ["--quiet", "--checkpoint-minutes=10", "--term-grace=50"]
+    assert GridRun("runs", "results", term_grace=0).run_options() == ["--term-grace=0"]
+    assert GridRun("runs", "results", term_grace=25.0).run_options() == []
 
 
 def test_a_finished_cell_stored_with_other_seeds_stops_the_grid_before_anything_runs(tmp_path, capsys):

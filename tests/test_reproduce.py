@@ -1,10 +1,12 @@
 """experiments.reproduce: bad input, the plan checked before the first cell runs, a tiny pendulum grid end to end (run,
-skip what is done, resume), the TD3 and C-engine grids' folders, TensorBoard, and a call from a dirty tree."""
+skip what is done, resume), a grid stopped by SIGTERM (its cell checkpointed within the grace, no report, resumed),
+the TD3 and C-engine grids' folders, TensorBoard, and a call from a dirty tree."""
 
 import json
 import os
 import re
 import shutil
+import signal
 import sys
 
 import numpy as np
@@ -28,6 +30,8 @@ def test_reproduce_rejects_bad_input(capsys):
     assert "unknown task 'cartpole'" in capsys.readouterr().err
     assert reproduce.main(["--methods", "sac"]) == 2
     assert reproduce.main(["--seeds", "0"]) == 2
+    assert reproduce.main(["--term-grace", "-5", "--dry-run"]) == 2
+    assert "--term-grace must be a finite number of seconds >= 0" in capsys.readouterr().err
 
 
 def test_the_run_order_lists_each_of_the_grids_tasks_once():
@@ -180,6 +184,63 @@ def test_reproduce_tiny_grid_runs_skips_and_resumes(tmp_path, capsys):
     readme = (results / "modern" / "README.md").read_text()
     assert "Left out of the tables (the grid has no cell stored for them): InvertedDoublePendulum" in readme
     assert "No aggregate scores" in readme and not (results / "modern" / "aggregate.md").exists()
+
+
+@pytest.mark.slow
+def test_a_grid_stopped_by_sigterm_checkpoints_its_cell_builds_no_report_and_resumes_the_cell(tmp_path, capsys,
+                                                                                               monkeypatch):
+    """A SIGTERM while the cell's first chunk is recorded: within the default grace the cell's run checkpoints the
+    chunk, the grid exits 143 without building its report, and the same command resumes the cell to the numbers of
+    an uninterrupted run. With ``--term-grace=0`` (passed on to the cell's run) it stops at once, with nothing
+    checkpointed."""
+    from experiments import run
+    from metapg_jax.host import runfiles
+    from metapg_jax.host.checkpoint import saved_steps
+    from tests.helpers import assert_same_run
+
+    write = runfiles.JsonlWriter.write
+
+    def sigterm_in_the_first_chunk():
+        def write_then_sigterm(self, rows):
+            write(self, rows)
+            if not getattr(write_then_sigterm, "sent", False):
+                write_then_sigterm.sent = True
+                os.kill(os.getpid(), signal.SIGTERM)
+
+        monkeypatch.setattr(runfiles.JsonlWriter, "write", write_then_sigterm)
+
+    def grid(name, *more):
+        runs, results = tmp_path / name / "runs", tmp_path / name / "results"
+        argv = ["--tasks", "pendulum", "--methods", "ddpg-paramnoise", "--seeds", "2", "--steps", "900", "--runs-dir",
+                str(runs), "--results-dir", str(results), "--quiet", "--no-plot", *TINY, *more]
+        return argv, runs / "paper" / "pendulum" / "ddpg-paramnoise", results
+
+    argv, cell, results = grid("graced")
+    sigterm_in_the_first_chunk()
+    assert reproduce.main(argv) == 143
+    monkeypatch.setattr(runfiles.JsonlWriter, "write", write)
+    assert saved_steps(str(cell / "checkpoints")) == [1] and not (cell / "summary.json").exists()
+    assert not (results / "table2.md").exists() and not (results / "README.md").exists()
+    err = capsys.readouterr().err
+    assert f"checkpointed after chunk 1 of 3; continue with: python -m experiments.run --resume {cell}" in err
+    assert "grid stopped by SIGTERM: its report is not built; run the same command again to resume it" in err
+    first = json.loads((cell / "reproduce.json").read_text())["calls"][0]
+    assert first["status"] == 143 and not any(a.startswith("--term-grace") for a in first["argv"])
+    assert reproduce.main(argv) == 0
+    out = capsys.readouterr().out
+    assert "resuming: python -m experiments.run" in out and "grid: 1 resumed" in out
+    assert (results / "table2.md").exists()
+    full = str(tmp_path / "uninterrupted")
+    assert run.main([a for a in first["argv"] if a not in ("--out", str(cell))] + ["--out", full]) == 0
+    assert_same_run(full, str(cell))
+
+    argv, cell, results = grid("at-once", "--term-grace=0")
+    sigterm_in_the_first_chunk()
+    assert reproduce.main(argv) == 143
+    assert saved_steps(str(cell / "checkpoints")) == [] and not (results / "table2.md").exists()
+    assert "--term-grace=0" in json.loads((cell / "reproduce.json").read_text())["calls"][0]["argv"]
+    assert "stopped by SIGTERM: chunk 1 of 3 was running and is lost; nothing of the run was checkpointed" in \
+        capsys.readouterr().err
 
 
 def test_reproduce_with_td3_runs_its_grid_in_its_own_folders(tmp_path, capsys, monkeypatch):

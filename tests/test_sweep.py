@@ -1,6 +1,6 @@
 """experiments.sweep / metapg_jax.sweep: settings x seeds in one program equal separate runs of the
 settings (up to float32 round-off: the batch shape differs), structural fields get programs of their
-own, bad input is refused before anything compiles, and an interrupted sweep resumes bit for bit."""
+own, bad input is refused before anything compiles, and a sweep interrupted by Ctrl-C or SIGTERM resumes bit for bit."""
 
 import json
 import os
@@ -92,29 +92,47 @@ def test_bad_grids_are_refused_before_compiling(grid, message, tmp_path, capsys)
 
 
 @pytest.mark.slow
-def test_an_interrupted_sweep_resumes_to_the_numbers_of_an_uninterrupted_one(tmp_path, monkeypatch):
+def test_an_interrupted_sweep_resumes_to_the_numbers_of_an_uninterrupted_one(tmp_path, monkeypatch, capsys):
+    """A Ctrl-C, and a SIGTERM (within its default grace), while the first chunk's rows are written: the chunk is
+    checkpointed, exit 130 / 143, and ``--resume`` (after the SIGTERM: the same loop wrote both checkpoints) ends
+    with the uninterrupted sweep's numbers. With ``--term-grace=0`` the SIGTERM stops the sweep at once, with nothing
+    checkpointed."""
     grid = [*GRID, "--steps=900", "--no-plot"]
-    whole, part = str(tmp_path / "whole"), str(tmp_path / "part")
+    whole = str(tmp_path / "whole")
     assert sweep.main([*TINY, *grid, "--out", whole]) == 0
     write = runfiles.JsonlWriter.write
 
-    def interrupt_once(self, rows):  # Ctrl-C while the first chunk's rows are written
-        write(self, rows)
-        if not getattr(interrupt_once, "sent", False):
-            interrupt_once.sent = True
-            os.kill(os.getpid(), signal.SIGINT)
+    def interrupt(signum):
+        def write_then_signal(self, rows):  # the signal while the first chunk's rows are written
+            write(self, rows)
+            if not getattr(write_then_signal, "sent", False):
+                write_then_signal.sent = True
+                os.kill(os.getpid(), signum)
 
-    monkeypatch.setattr(runfiles.JsonlWriter, "write", interrupt_once)
-    assert sweep.main([*TINY, *grid, "--out", part]) == 130
-    monkeypatch.setattr(runfiles.JsonlWriter, "write", write)
-    assert not os.path.exists(os.path.join(part, "summary.json"))
-    assert sweep.main(["--resume", part, "--quiet", "--no-plot"]) == 0
+        monkeypatch.setattr(runfiles.JsonlWriter, "write", write_then_signal)
+
     key = lambda r: (r["setting"], r["seed"], r["chunk"])
     strip = lambda rows: sorted(({k: v for k, v in r.items() if k not in ("wall_time", "chunk_seconds")}
                                  for r in rows), key=key)
+    for signum, status in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
+        part = str(tmp_path / f"part-{signum}")
+        interrupt(signum)
+        assert sweep.main([*TINY, *grid, "--out", part]) == status
+        monkeypatch.setattr(runfiles.JsonlWriter, "write", write)
+        assert not os.path.exists(os.path.join(part, "summary.json"))
+        assert sorted(os.listdir(os.path.join(part, "groups", "0", "checkpoints"))) == ["1"]
+        assert f"checkpointed after chunk 1 of 3 of group 1; continue with: python -m experiments.sweep --resume " \
+               f"{part}" in capsys.readouterr().err
+    assert sweep.main(["--resume", part, "--quiet", "--no-plot"]) == 0
     assert strip(_rows(part)) == strip(_rows(whole))
     assert json.load(open(os.path.join(part, "summary.json"))) == json.load(open(os.path.join(whole, "summary.json")))
     assert sweep.main(["--resume", part, "--grid", "meta.lr=1"]) == 2
+    part = str(tmp_path / "part-at-once")
+    interrupt(signal.SIGTERM)
+    assert sweep.main([*TINY, *grid, "--term-grace=0", "--out", part]) == 143
+    assert not os.listdir(os.path.join(part, "groups", "0", "checkpoints"))
+    assert "stopped by SIGTERM: chunk 1 of 3 was running and is lost; nothing of group 1 was checkpointed" in \
+        capsys.readouterr().err
 
 
 def test_a_ctrl_c_between_two_groups_stops_the_sweep_before_the_next(tmp_path, monkeypatch, capsys):

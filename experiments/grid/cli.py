@@ -14,6 +14,8 @@ def add_grid_options(p: argparse.ArgumentParser, *, seeds: int, seed: int, steps
                      steps_help: str, physics_help: str, runs_help: str, results_help: str) -> None:
     """Adds the shared options with the command's defaults (``runs_dir``/``results_dir`` default to None: each
     command derives its folders)."""
+    from experiments.training import args as training_args
+
     p.add_argument("--seeds", type=int, default=seeds, help=f"seeds per cell (default {seeds})")
     p.add_argument("--seed", type=int, default=seed, help=f"base PRNG seed of every cell (default {seed})")
     p.add_argument("--steps", type=int, default=steps, help=steps_help)
@@ -32,6 +34,8 @@ def add_grid_options(p: argparse.ArgumentParser, *, seeds: int, seed: int, steps
                         "every --checkpoint-minutes)")
     p.add_argument("--checkpoint-minutes", type=float, default=5.0,
                    help="each cell's minimum minutes between checkpoints (experiments.run; default 5)")
+    training_args.add_stop_options(p, "; passed to each cell's experiments.run; a grid stopped by SIGTERM exits 143 "
+                                      "without building its report, and the same command resumes the cell")
     p.add_argument("--launcher", default="local", choices=("local", "ray"),
                    help="local (default): the cells one after another in this process; ray: each cell a Ray task "
                         "(the ray extra), on a local Ray instance started here, or on --ray-address")
@@ -53,8 +57,7 @@ def check_grid_options(a: argparse.Namespace, trains: bool) -> None:
     training_args.parse_overrides(a.overrides)  # GROUP.FIELD=VALUE each
     if a.ray_cpus_per_cell < 0 or a.ray_gpus_per_cell < 0 or a.ray_retries < 0:
         raise ValueError("--ray-cpus-per-cell, --ray-gpus-per-cell and --ray-retries must be >= 0")
-    if a.checkpoint_every < 0 or not a.checkpoint_minutes > 0:
-        raise ValueError("--checkpoint-every must be >= 0 and --checkpoint-minutes > 0")
+    training_args.check_stop_options(a.checkpoint_every, a.checkpoint_minutes, a.term_grace)
     if trains and a.launcher == "ray":
         try:
             import ray  # noqa: F401
@@ -78,7 +81,8 @@ def grid_run(a: argparse.Namespace, runs_dir: str, results_dir: str, preset: str
     else ``--no-plot``)."""
     return GridRun(runs_dir, results_dir, preset=preset, baseline=baseline, quiet=a.quiet,
                    no_plot=a.no_plot if no_plot is None else no_plot, tensorboard=a.tensorboard,
-                   checkpoint_every=a.checkpoint_every, checkpoint_minutes=a.checkpoint_minutes)
+                   checkpoint_every=a.checkpoint_every, checkpoint_minutes=a.checkpoint_minutes,
+                   term_grace=a.term_grace)
 
 
 def launch(cells: list, a: argparse.Namespace, word: str = "grid") -> tuple[int, dict]:

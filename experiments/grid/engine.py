@@ -11,12 +11,13 @@ every named study of ``experiments.grid.studies``) says only which cells it has 
 3. run: the cells with work left, one after another here or as Ray tasks (``experiments.grid.cli.launch``);
    each is resumed from its checkpoint, recorded with its provenance and archived as soon as it finishes
    (``experiments.training.grid_cells``);
-4. report: the command's report rebuilt from whatever the archive holds (also after an interrupted run, and
-   alone with ``--report-only`` / ``--artefacts-only``).
+4. report: the command's report rebuilt from whatever the archive holds (also after a Ctrl-C, and alone with
+   ``--report-only`` / ``--artefacts-only``); not after a SIGTERM, which a scheduler follows with a kill.
 
 Exit status: 0 every cell finished (a dry run: the plan printed); 1 a dry run whose calibration runs all failed;
-2 bad input; 3 some cell stopped on non-finite parameters (the others still ran); 130 interrupted (143 by
-SIGTERM): the report is still rebuilt; the same command resumes.
+2 bad input; 3 some cell stopped on non-finite parameters (the others still ran); 130 interrupted by Ctrl-C: the
+report is still rebuilt; 143 stopped by SIGTERM (the cell's run checkpointed its chunk in flight within
+``--term-grace``, or stopped at once): the report is not built. The same command resumes the stopped cell.
 """
 
 from __future__ import annotations
@@ -67,5 +68,9 @@ def run(a: argparse.Namespace, plan: Callable[[], GridPlan], report_only: bool) 
     t0, status = time.perf_counter(), 0
     if not report_only:
         status, _ = launch(p.cells, a, p.word)
+    if status == 143:
+        print(f"{p.word} stopped by SIGTERM: its report is not built; run the same command again to resume it",
+              file=sys.stderr, flush=True)
+        return status
     p.report(round(time.perf_counter() - t0, 2))
     return status

@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 
 from metapg_jax.config import Config
+from metapg_jax.host.runner import TERM_GRACE
 
 
 @dataclasses.dataclass(frozen=True)
@@ -167,8 +168,9 @@ class GridRun:
         (``experiments.analysis.cells.archive_dir_for``).
       preset: the grid's preset, which names its folders (a method's own preset does not).
       baseline: the grid method whose visitation sample the archive keeps beside Meta's.
-      quiet, no_plot, tensorboard, checkpoint_every, checkpoint_minutes: ``experiments.run``'s options of every
-        cell (no progress bars; no per-run PNGs; TensorBoard scalars; the checkpoint cadence).
+      quiet, no_plot, tensorboard, checkpoint_every, checkpoint_minutes, term_grace: ``experiments.run``'s options
+        of every cell (no progress bars; no per-run PNGs; TensorBoard scalars; the checkpoint cadence; what a SIGTERM
+        leaves a cell's run to finish its chunk in flight and checkpoint it).
     """
 
     runs_dir: str
@@ -180,13 +182,17 @@ class GridRun:
     tensorboard: bool = False
     checkpoint_every: int = 0
     checkpoint_minutes: float = 5.0
+    term_grace: float = TERM_GRACE
 
     def run_options(self) -> list[str]:
-        """The ``experiments.run`` options that say how each cell runs (none of them changes its numbers)."""
+        """The ``experiments.run`` options that say how each cell runs (none of them changes its numbers); those at
+        their defaults are left out, so the recorded command lines keep their form."""
         out = [flag for flag, on in (("--no-plot", self.no_plot), ("--quiet", self.quiet),
                                      ("--tensorboard", self.tensorboard)) if on]
         if self.checkpoint_every:
             out.append(f"--checkpoint-every={self.checkpoint_every}")
         if self.checkpoint_minutes != 5.0:
             out.append(f"--checkpoint-minutes={self.checkpoint_minutes:g}")
+        if self.term_grace != TERM_GRACE:
+            out.append(f"--term-grace={self.term_grace:g}")
         return out

@@ -102,6 +102,28 @@ def import_plugins(names: list[str]) -> None:
                 raise ValueError(f"--plugin {name}: cannot import it: {err}") from None
 
 
+def add_stop_options(p: argparse.ArgumentParser, note: str = "") -> None:
+    """Adds ``--term-grace`` (what a SIGTERM leaves a chunk loop; ``note``: the command's own words on it)."""
+    from metapg_jax.host.runner import TERM_GRACE
+
+    p.add_argument("--term-grace", type=float, default=TERM_GRACE, metavar="SECONDS",
+                   help=f"on SIGTERM (what a batch scheduler sends before it kills): seconds to finish the chunk in "
+                        f"flight, checkpoint it and exit 143 (if the chunk and its checkpoint cannot fit in them, it "
+                        f"stops at once); 0: stop at once, losing the work since the last checkpoint{note} (default "
+                        f"{TERM_GRACE:g}; docs/long-runs.md#schedulers)")
+
+
+def check_stop_options(checkpoint_every: int, checkpoint_minutes: float, term_grace: float) -> None:
+    """One-line ``ValueError`` for a bad checkpoint cadence or ``--term-grace``."""
+    from metapg_jax.host.runner import check_term_grace
+
+    if checkpoint_every < 0:
+        raise ValueError(f"--checkpoint-every must be >= 0, got {checkpoint_every}")
+    if not checkpoint_minutes > 0:
+        raise ValueError(f"--checkpoint-minutes must be > 0, got {checkpoint_minutes:g}")
+    check_term_grace(term_grace)
+
+
 def check_counts(seeds: int, seed: int, steps: int | None) -> None:
     """One-line ``ValueError`` for a non-positive seed count or budget, or a base seed outside [0, 2**32)."""
     if seeds <= 0:

@@ -242,8 +242,10 @@ def run_cells(cells: list[Cell], dry_run: bool = False) -> tuple[int, dict]:
 
     Ctrl-C stops the grid wherever it comes (``runner.Signals``): during a cell's run, the run checkpoints its
     chunk in flight; while a run is set up, after its first chunk; while a cell is planned, recorded or archived,
-    before the next cell starts; exit 130. SIGTERM or a second Ctrl-C stops a run at once (143 / 130); one that
-    comes while a cell is recorded or archived waits for that to end."""
+    before the next cell starts; exit 130. SIGTERM stops the grid with exit 143: during a cell's run, after the
+    run checkpointed its chunk in flight within its grace (``--term-grace``) or at once where that cannot be met;
+    a second Ctrl-C stops a run at once (130); a stop that comes while a cell is recorded or archived waits for
+    that to end."""
     status, report, walls = 0, {}, []
     with Signals("the grid stops at the next checkpoint or before the next cell") as signals:
         for i, cell in enumerate(cells, 1):

@@ -21,16 +21,17 @@ from metapg_jax import config as config_lib
 from metapg_jax.host import compile_cache, metric_rows, runfiles
 from metapg_jax.host.loggers import Logger, Loggers
 from metapg_jax.host.processes import barrier, to_host
-from metapg_jax.host.runner import ChunkLoop
+from metapg_jax.host.runner import TERM_GRACE, ChunkLoop, check_term_grace
 
 
 def run(cfg: config_lib.Config, run_args: dict, out: str, *, loggers: Sequence[Logger] = (), resume: bool = False,
         extend_from: int | None = None, overwrite: bool = False, checkpoint_every: int = 0,
         checkpoint_minutes: float = 5.0, finalize: Callable[[Any, dict], dict] | None = None, trainer: Any = None,
-        label: str | None = None, restart: str | None = None) -> int:
+        label: str | None = None, restart: str | None = None, term_grace: float = TERM_GRACE) -> int:
     """Trains the run in ``out`` to its budget; returns the exit status: 0 done, 3 non-finite parameters (the run
     stops before checkpointing that chunk; the last good checkpoint stays), 130 interrupted by a first Ctrl-C
-    (after checkpointing the chunk in flight), 130 / 143 stopped at once by a second Ctrl-C / SIGTERM
+    (after checkpointing the chunk in flight), 143 stopped by SIGTERM after checkpointing the chunk in flight
+    within ``term_grace``, 130 / 143 stopped at once by a second Ctrl-C / a SIGTERM whose grace cannot be met
     (``runner.ChunkLoop``'s stop line says what was lost).
 
     Args:
@@ -51,10 +52,13 @@ def run(cfg: config_lib.Config, run_args: dict, out: str, *, loggers: Sequence[L
       label: the run's name in its terminal lines (default '<env> <method>').
       restart: the command that starts the run again, printed if it is stopped before its first checkpoint
         (default: this call with ``overwrite=True``).
+      term_grace: the seconds a SIGTERM leaves the run to finish its chunk in flight and checkpoint it before it exits
+        143 (``runner.Signals``: if it cannot, it stops at once); 0: a SIGTERM stops it at once.
     """
     if checkpoint_every < 0 or not checkpoint_minutes > 0:
         raise ValueError(f"checkpoint_every must be >= 0 and checkpoint_minutes > 0, got {checkpoint_every} and "
                          f"{checkpoint_minutes}")
+    check_term_grace(term_grace, "term_grace")
     if extend_from is not None and not resume:
         raise ValueError("extend_from extends a stored run: it needs resume=True")
     if not {"seeds", "seed"} <= run_args.keys():
@@ -70,7 +74,7 @@ def run(cfg: config_lib.Config, run_args: dict, out: str, *, loggers: Sequence[L
 
     resume_command = f"python -m experiments.run --resume {out}"
     chunk_loop = ChunkLoop("the run", checkpointed, cfg.num_chunks, cfg.run.eval_every, resume_command,
-                           restart or "this call with overwrite=True")
+                           restart or "this call with overwrite=True", grace=term_grace)
     with chunk_loop:  # a stop while compiling or in the loop: the stop line, chunk_loop.status
         # Kept first, so closed last: after the files and the checkpointer, before a stop line.
         reports = chunk_loop.keep(Loggers(loggers if jax.process_index() == 0 else ()))
