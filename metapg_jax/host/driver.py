@@ -53,7 +53,8 @@ def run(cfg: config_lib.Config, run_args: dict, out: str, *, loggers: Sequence[L
       restart: the command that starts the run again, printed if it is stopped before its first checkpoint
         (default: this call with ``overwrite=True``).
       term_grace: the seconds a SIGTERM leaves the run to finish its chunk in flight and checkpoint it before it exits
-        143 (``runner.Signals``: if it cannot, it stops at once); 0: a SIGTERM stops it at once.
+        143 (``runner.Signals``: if it cannot, it stops at once); 0: a SIGTERM stops it at once, as it always does in
+        a job of several processes.
     """
     if checkpoint_every < 0 or not checkpoint_minutes > 0:
         raise ValueError(f"checkpoint_every must be >= 0 and checkpoint_minutes > 0, got {checkpoint_every} and "
@@ -72,6 +73,11 @@ def run(cfg: config_lib.Config, run_args: dict, out: str, *, loggers: Sequence[L
         done = saved_steps(os.path.join(out, "checkpoints"))
         return done[-1] if done else None
 
+    if jax.process_count() > 1:
+        # Each process would judge the grace on its own clock and signal time, and the checkpoint is written by
+        # all of them together: one that finished its chunk while another stopped at once would wait for it for
+        # ever. A job of several processes stops at once on SIGTERM (its last checkpoint stays).
+        term_grace = 0.0
     resume_command = f"python -m experiments.run --resume {out}"
     chunk_loop = ChunkLoop("the run", checkpointed, cfg.num_chunks, cfg.run.eval_every, resume_command,
                            restart or "this call with overwrite=True", grace=term_grace)
