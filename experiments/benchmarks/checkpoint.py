@@ -135,12 +135,20 @@ def _mib(n: int) -> str:
     return f"{n / 2**20:,.1f}"
 
 
+def _heading(title: str, flag: str, meta: dict) -> tuple[str, str, str]:
+    """A section's title line (date, commit, whether the tree was dirty), a blank line, and the start of its first
+    paragraph: the command, the machine and the conditions."""
+    dirty = " (uncommitted changes)" if meta.get("dirty") else ""
+    return (f"## {title} ({meta['date']}, commit {meta['commit'][:7]}{dirty})", "",
+            f"`python -m experiments.bench {flag}`: {meta['machine']}, JAX {meta['jax']}, {meta['backend']}; "
+            f"{meta['conditions']}.")
+
+
 def checkpoint_markdown(rows: list[dict], meta: dict, grace: float) -> str:
     """The checkpoint-cost table and its verdict against the default grace ``grace``."""
-    lines = [f"## What a checkpoint costs ({meta['date']}, commit {meta['commit'][:7]}"
-             f"{' (uncommitted changes)' if meta.get('dirty') else ''})", "",
-             f"`python -m experiments.bench --checkpoint`: {meta['machine']}, JAX {meta['jax']}, {meta['backend']}; "
-             f"{meta['conditions']}. Each run's state as `experiments.run` builds it, written by the driver's "
+    title, blank, intro = _heading("What a checkpoint costs", "--checkpoint", meta)
+    lines = [title, blank,
+             f"{intro} Each run's state as `experiments.run` builds it, written by the driver's "
              f"checkpointer (`metapg_jax/host/checkpoint.py`: orbax, atomic, the last 2 kept) {rows[0]['writes']} "
              f"times into a temporary folder on the machine's disk; median seconds per write and bytes on disk, "
              f"with the replay buffers empty (a new run) and full (every row random: the most a checkpoint holds). "
@@ -161,10 +169,9 @@ def checkpoint_markdown(rows: list[dict], meta: dict, grace: float) -> str:
 
 def sigterm_markdown(rows: list[dict], meta: dict, steps: int) -> str:
     """The SIGTERM table: each grace's exit, checkpoint and lost training."""
-    lines = [f"## What a SIGTERM loses ({meta['date']}, commit {meta['commit'][:7]}"
-             f"{' (uncommitted changes)' if meta.get('dirty') else ''})", "",
-             f"`python -m experiments.bench --checkpoint-sigterm`: {meta['machine']}, JAX {meta['jax']}, "
-             f"{meta['backend']}; {meta['conditions']}. `python -m experiments.run {' '.join(MAIN_JOB)} "
+    title, blank, intro = _heading("What a SIGTERM loses", "--checkpoint-sigterm", meta)
+    lines = [title, blank,
+             f"{intro} `python -m experiments.run {' '.join(MAIN_JOB)} "
              f"--steps={steps} --term-grace=G` in a fresh process (its programs from a compile cache the first run "
              f"filled), sent SIGTERM during chunk {rows[0]['chunks_before_signal'] + 1}, before its first checkpoint "
              f"(the default 5-minute cadence). Lost: the seconds of training before the signal that no checkpoint "
