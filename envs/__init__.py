@@ -125,6 +125,11 @@ PHYSICS = ("mjx", "mujoco")
 PHYSICS_CHOICES = ("auto", *PHYSICS)
 
 
+def is_dmc_task(name: str) -> bool:
+    """A ``dmc:<domain>-<task>`` task: DeepMind Control suite's, on both engines (``envs/dmc.py``)."""
+    return name.startswith("dmc:")
+
+
 def is_gym_task(name: str) -> bool:
     """A ``gym:<Id>`` task: any gymnasium MuJoCo env, on the C engine only (``envs/gym_generic.py``)."""
     return name.startswith("gym:")
@@ -178,9 +183,14 @@ def get_spec(name: str) -> TaskSpec:
         from envs.gym_names import task_spec
 
         return task_spec(name)
+    if is_dmc_task(name):
+        from envs.dmc_names import task_spec as dmc_spec
+
+        return dmc_spec(name)
     if name not in TASKS:
-        raise ValueError(f"unknown task {name!r}; valid tasks: {', '.join(TASKS)}, or gym:<Id> for any "
-                         f"gymnasium MuJoCo env (e.g. gym:Walker2d-v5)")
+        raise ValueError(f"unknown task {name!r}; valid tasks: {', '.join(TASKS)}, gym:<Id> for any "
+                         f"gymnasium MuJoCo env (e.g. gym:Walker2d-v5), or dmc:<domain>-<task> (DeepMind Control, "
+                         f"e.g. dmc:cartpole-swingup)")
     return TASKS[name]
 
 
@@ -189,7 +199,7 @@ def display_name(name: str) -> str:
     arguments (not checked against gymnasium); ``ValueError`` (one line) for an unknown task."""
     if is_gym_task(name):
         return name[len("gym:"):]
-    return get_spec(name).display_name
+    return get_spec(name).display_name  # a dmc: task's is its name without the prefix
 
 
 def has_mujoco(name: str) -> bool:
@@ -214,6 +224,10 @@ def constructor(name: str, source: str = "gymnasium") -> Callable[..., Env]:
         from envs.brax_mujoco import brax_task
 
         return brax_task(spec.brax_name)
+    if is_dmc_task(name):
+        from envs.dmc_names import constructor as dmc_constructor
+
+        return dmc_constructor(name)
     module, attribute = spec.entry_point.split(":")
     return getattr(importlib.import_module(module), attribute)
 
@@ -231,6 +245,9 @@ def check_physics(name: str, source: str, physics: str) -> None:
                              f"and termination are gymnasium's own Python code, called on the host every step, "
                              f"which MJX (traced into the program) cannot run")
         return
+    if is_dmc_task(name) and source != "gymnasium":
+        raise ValueError(f"{name} is a DeepMind Control task on dm_control's model: --source={source} does not "
+                         f"apply (use the default, --source=gymnasium)")
     if physics == "mujoco" and not get_spec(name).mujoco:
         raise ValueError(f"{name} is a JAX task without MuJoCo physics: --physics=mujoco applies to the "
                          f"MuJoCo tasks (use the default for {name})")

@@ -32,6 +32,7 @@ nothing here uses. ``early_exit_linesearch=False`` gives stock MJX.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import re
 import warnings
@@ -176,15 +177,21 @@ class GymMujocoEnv(Env):
     _metric_keys: Tuple[str, ...] = ()
     # MjData fields besides qpos/qvel that _get_obs/_reward_done read (computed by the step).
     derived_fields: Tuple[str, ...] = ()
+    # The C engine's stages at the new state after a step (mujoco.batch.Batch.step's ``stage``): none, as
+    # gymnasium's mj_step leaves MjData (derived fields of the state before the last substep).
+    step_stage: int = int(mujoco.mjtStage.mjSTAGE_NONE)
+    # Per-env model entries a reset draws ((MjModel field, flat index) pairs; e.g. a target's position),
+    # carried with the physics state; and the candidates a reset draws, of which the C engine keeps the first
+    # without contacts (1: the one drawn). Both for the DeepMind Control tasks (envs/dmc.py).
+    model_params: Tuple[Tuple[str, int], ...] = ()
+    reset_tries: int = 1
 
-    def __init__(self, xml_file: str, frame_skip: int, early_exit_linesearch: bool = True):
+    def __init__(self, xml_file, frame_skip: int, early_exit_linesearch: bool = True):
         # See the module docstring ("Speed"); False gives MJX's stock line search.
         self.early_exit_linesearch = bool(early_exit_linesearch)
-        self.mj_model = load_model(gymnasium_asset_path(xml_file))
-        self.mjx_model = mjx.put_model(self.mj_model)
-        # A template mjx.Data (as after gymnasium's mj_resetData) that reset
-        # fills in; built once here so reset does no host-side work.
-        self._data0 = mjx.make_data(self.mjx_model)
+        # A gymnasium file name, or a compiled model (envs/dmc.py loads dm_control's).
+        self.mj_model = (xml_file if isinstance(xml_file, mujoco.MjModel)
+                         else load_model(gymnasium_asset_path(xml_file)))
         self.frame_skip = int(frame_skip)
         # Python float, as gymnasium's MujocoEnv.dt (timestep * frame_skip).
         self.dt = float(self.mj_model.opt.timestep) * self.frame_skip
@@ -198,6 +205,17 @@ class GymMujocoEnv(Env):
         self._ctrl_high = jnp.asarray(ctrlrange[:, 1])
         # float64 for the C engine, which scales on the host (envs/mujoco_c.py).
         self._ctrlrange64 = np.array(self.mj_model.actuator_ctrlrange, dtype=np.float64)
+
+    @functools.cached_property
+    def mjx_model(self) -> mjx.Model:
+        """The model on MJX (built on first use: the C engine does not need it)."""
+        return mjx.put_model(self.mj_model)
+
+    @functools.cached_property
+    def _data0(self) -> mjx.Data:
+        """A template mjx.Data (as after gymnasium's mj_resetData) that reset fills in, built once so that
+        reset does no host-side work."""
+        return mjx.make_data(self.mjx_model)
 
     # -- Brax Env interface -------------------------------------------------
 
@@ -283,6 +301,11 @@ class GymMujocoEnv(Env):
     def sample_qpos_qvel(self, rng: jax.Array) -> Tuple[jax.Array, jax.Array]:
         """Initial (qpos, qvel) with gymnasium's ``reset_model`` noise."""
         raise NotImplementedError
+
+    def sample_reset(self, rng: jax.Array) -> jax.Array:
+        """The reset's candidates, (reset_tries, nq + nv + len(model_params)) float32: qpos, qvel, model params."""
+        qpos, qvel = self.sample_qpos_qvel(rng)
+        return jnp.concatenate([qpos, qvel])[None]
 
     def _reward_done(self, xp, data0, data, ctrl, obs):
         """Return (reward, terminated, metrics) for the transition data0 -> data."""

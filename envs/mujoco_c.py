@@ -86,6 +86,12 @@ class HostPhysics:
     ``step`` and ``reset`` are plain numpy functions (used by the callbacks and
     by tests that compare with gymnasium); ``step_words`` / ``reset_words`` are
     the callbacks' entry points, one packed uint32 array in and one out.
+
+    A state row is the integration state followed by the task's per-env model entries
+    (``task.model_params``: none for gymnasium's tasks; e.g. the target of DeepMind Control's Reacher),
+    which are written into the batch's per-simulation copy of those model fields before every call.
+    A reset gets ``task.reset_tries`` candidates per env and keeps the first without contacts after
+    ``mj_forward`` (the last one if all have some); with one candidate, that one.
     """
 
     def __init__(self, task, threads: int | None = None):
@@ -97,6 +103,8 @@ class HostPhysics:
             raise ValueError(f"physics threads must be >= 1, got {threads}")
         self.nstate = mujoco.mj_stateSize(self.model, STATE_SPEC)
         self.nq, self.nv, self.nu = self.model.nq, self.model.nv, self.model.nu
+        self.params, self.tries = tuple(task.model_params), int(task.reset_tries)
+        self.nparam, self.stage = len(self.params), int(task.step_stage)
         self.obs_size = int(task.observation_size)
         self.metric_keys = tuple(task._metric_keys)
         self.fields = tuple(task.derived_fields)
@@ -108,7 +116,8 @@ class HostPhysics:
         self._scratch: dict[int, _Scratch] = {}
         self._lock = threading.Lock()
         # Packed widths (uint32 words per env) of the callbacks' inputs and outputs.
-        self.w_state = 2 * self.nstate
+        self.w_state = 2 * (self.nstate + self.nparam)
+        self.w_reset_in = self.tries * (self.nq + self.nv + self.nparam)
         self.w_step_out = self.w_state + 2 * self.obs_size + 2 + len(self.metric_keys)
         self.w_reset_out = self.w_state + self.obs_size
 
@@ -120,64 +129,71 @@ class HostPhysics:
 
     # -- numpy API (float64) ------------------------------------------------------
 
-    def reset(self, qpos: np.ndarray, qvel: np.ndarray):
-        """States at (n, nq) / (n, nv) float64 qpos/qvel: returns (state rows (n, nstate), obs (n, obs))."""
+    def reset(self, qpos: np.ndarray, qvel: np.ndarray, params=None):
+        """States at (n, nq) / (n, nv) float64 qpos/qvel (and (n, nparam) model params; default 0), taken as
+        they are: returns (state rows (n, nstate + nparam), obs (n, obs))."""
         qpos = np.asarray(qpos, np.float64).reshape(-1, self.nq)
         qvel = np.asarray(qvel, np.float64).reshape(-1, self.nv)
+        params = np.zeros((len(qpos), self.nparam)) if params is None else np.asarray(params, np.float64)
         with self._lock:
             s = self._get(len(qpos))
-            s.reset(None, qpos, qvel)
-            return s.batch.state.copy(), s.obs()
+            s.reset(None, np.concatenate([qpos, qvel, params.reshape(len(qpos), -1)], axis=-1)[:, None])
+            return s.rows(), s.obs()
 
-    def step(self, rows: np.ndarray, action: np.ndarray, reset_qpos=None, reset_qvel=None, force_reset=None):
-        """One env step of n simulations from state rows (n, nstate) with actions (n, nu) in [-1, 1]
+    def step(self, rows: np.ndarray, action: np.ndarray, reset_tries=None, force_reset=None):
+        """One env step of n simulations from state rows (n, nstate + nparam) with actions (n, nu) in [-1, 1]
         (mapped onto ctrlrange in float64 as the task's ``scale_action``; ``ctrl`` in the result), in float64.
 
         Returns a dict of float64 arrays: ``next_obs``, ``reward``, ``terminated`` (bool) and the
         task's reward components (``metrics``), all of the step; and ``rows`` and ``obs``, the state
-        after it. With ``reset_qpos``/``reset_qvel`` (n, nq) / (n, nv), the envs that ended
-        (terminated, or ``force_reset``) are reset to them: their ``rows`` and ``obs`` are the reset
-        state's.
+        after it. With ``reset_tries`` (n, tries, nq + nv + nparam), the envs that ended (terminated, or
+        ``force_reset``) are reset to them: their ``rows`` and ``obs`` are the reset state's.
         """
-        rows = np.asarray(rows, np.float64).reshape(-1, self.nstate)
+        rows = np.asarray(rows, np.float64).reshape(-1, self.nstate + self.nparam)
         with self._lock:
             s = self._get(len(rows))
-            s.batch.state[:] = rows
-            out = s.step(action, reset_qpos, reset_qvel, force_reset)
-            out["rows"] = s.batch.state.copy()
+            s.batch.state[:] = rows[:, :self.nstate]
+            s.params[:] = rows[:, self.nstate:]
+            out = s.step(action, reset_tries, force_reset)
+            out["rows"] = s.rows()
             return out
 
     # -- callbacks (packed uint32 words) --------------------------------------------
 
     def reset_words(self, words: np.ndarray) -> np.ndarray:
-        """[qpos f32 | qvel f32] per env -> [state | obs f32]."""
+        """[tries x (qpos | qvel | params) f32] per env -> [state | obs f32]."""
         words = np.asarray(words)
         lead = words.shape[:-1]
         flat = words.reshape(-1, words.shape[-1]).view(np.float32)
-        rows, obs = self.reset(flat[:, :self.nq], flat[:, self.nq:self.nq + self.nv])
+        with self._lock:
+            s = self._get(len(flat))
+            s.reset(None, flat.reshape(len(flat), self.tries, -1))
+            rows, obs = s.rows(), s.obs()
         out = np.empty((len(rows), self.w_reset_out), np.uint32)
         out[:, :self.w_state] = rows.view(np.uint32)
         out.view(np.float32)[:, self.w_state:] = obs
         return out.reshape(*lead, self.w_reset_out)
 
     def step_words(self, words: np.ndarray, fused: bool) -> np.ndarray:
-        """[state | action f32 (| reset qpos f32 | reset qvel f32 | force_reset f32)] per env ->
+        """[state | action f32 (| reset tries f32 | force_reset f32)] per env ->
         [state | next_obs f32 | obs f32 | reward f32 | terminated f32 | metrics f32]."""
         words = np.asarray(words)
         lead = words.shape[:-1]
         flat = words.reshape(-1, words.shape[-1])
-        n, ws, no = len(flat), self.w_state, self.obs_size
+        n, ws, no, wi = len(flat), self.w_state, self.obs_size, 2 * self.nstate
         f = flat[:, ws:].view(np.float32)
-        nq, nv, nu = self.nq, self.nv, self.nu
+        nu, wr = self.nu, self.w_reset_in
         with self._lock:
             s = self._get(n)
-            s.words[:] = flat[:, :ws]
+            s.words[:] = flat[:, :wi]
+            s.params[:] = flat[:, wi:ws].view(np.float64)
             if fused:
-                r = s.step(f[:, :nu], f[:, nu:nu + nq], f[:, nu + nq:nu + nq + nv], f[:, nu + nq + nv] > 0.5)
+                r = s.step(f[:, :nu], f[:, nu:nu + wr].reshape(n, self.tries, -1), f[:, nu + wr] > 0.5)
             else:
                 r = s.step(f[:, :nu])
             out = np.empty((n, self.w_step_out), np.uint32)
-            out[:, :ws] = s.words
+            out[:, :wi] = s.words
+            out[:, wi:ws] = s.params.view(np.uint32)
         pack_step(out, r, ws, no, self.metric_keys)
         return out.reshape(*lead, self.w_step_out)
 
@@ -185,53 +201,72 @@ class HostPhysics:
 class _Scratch:
     """One batch size's scratch: a ``mujoco.batch.Batch`` and live views of its fields.
 
-    Holds nothing between calls that a call does not first overwrite (the state rows).
+    Holds nothing between calls that a call does not first overwrite (the state rows and model params).
     """
 
     def __init__(self, host: HostPhysics, nsim: int):
-        self.task, self.frame_skip = host.task, host.frame_skip
+        self.task, self.frame_skip, self.stage = host.task, host.frame_skip, host.stage
         self.reset_row, self.fields = host.reset_row, host.fields
+        self.nq, self.nv = host.nq, host.nv
         self.batch = b = mj_batch.Batch(host.model, nsim, nthread=min(host.threads, nsim))
         self.words = b.state.view(np.uint32)
         self.qpos, self.ctrl = b.bind("qpos"), b.bind("ctrl")
+        # The model params (nsim, nparam) and where they go: flat views of per-simulation model fields.
+        self.params = np.zeros((nsim, host.nparam))
+        self._targets = [(b.expand(field).reshape(nsim, -1), index) for field, index in host.params]
+        self.ncon = b.bind("ncon") if host.tries > 1 else None
         # What the task math reads, as (n, ...) float64 arrays.
         self.view = types.SimpleNamespace(qpos=self.qpos, qvel=b.bind("qvel"),
                                           **{name: b.bind(name) for name in host.fields})
 
+    def rows(self) -> np.ndarray:
+        """The state rows (a copy): integration state, model params."""
+        return np.concatenate([self.batch.state, self.params], axis=-1)
+
+    def _write_params(self) -> None:
+        for j, (target, index) in enumerate(self._targets):
+            target[:, index] = self.params[:, j]
+
     def obs(self) -> np.ndarray:
         return self.task._get_obs(np, self.view)
 
-    def reset(self, ids, qpos, qvel) -> None:
-        """gymnasium's reset of simulations ``ids`` (None: all): mj_resetData, set qpos/qvel, mj_forward.
+    def reset(self, ids, tries) -> None:
+        """gymnasium's reset of simulations ``ids`` (None: all) to ``tries`` (len(ids), tries, nq + nv + nparam):
+        mj_resetData (the reset row written into the state rows), set qpos/qvel and the model params,
+        mj_forward; of several tries, the first without contacts. ``mj_forward`` changes no state, so it runs only
+        for tasks that read derived fields or reject (a batch call costs ~50-100 us; resets are frequent)."""
+        rows, nq, nv = self.batch.state, self.nq, self.nv
+        ids = np.arange(len(rows)) if ids is None else ids
+        pick = np.arange(len(ids))  # rows of ``tries`` still to place, and their simulations
+        for k in range(tries.shape[1]):
+            sims, cand = ids[pick], tries[pick, k]
+            rows[sims] = self.reset_row
+            self.qpos[sims], self.view.qvel[sims] = cand[:, :nq], cand[:, nq:nq + nv]
+            self.params[sims] = cand[:, nq + nv:]
+            self._write_params()
+            if self.fields or self.ncon is not None:
+                self.batch.forward(sims)
+            if self.ncon is None or k == tries.shape[1] - 1:
+                break
+            pick = pick[self.ncon[sims] > 0]
+            if not len(pick):
+                break
 
-        ``mj_resetData`` is the reset row (``HostPhysics.reset_row``) written into the state rows;
-        ``mj_forward`` changes no state, only derived fields, so it runs only for tasks whose
-        observation reads some (IDP, Reacher): a batch call costs ~50-100 us, resets are frequent.
-        """
-        rows = self.batch.state
-        if ids is None:
-            rows[:] = self.reset_row
-            self.qpos[:], self.view.qvel[:] = qpos, qvel
-        else:
-            rows[ids] = self.reset_row
-            self.qpos[ids], self.view.qvel[ids] = qpos, qvel
-        if self.fields:
-            self.batch.forward(ids)
-
-    def step(self, action, reset_qpos=None, reset_qvel=None, force_reset=None) -> dict:
+    def step(self, action, reset_tries=None, force_reset=None) -> dict:
         """The step of every simulation from the state rows as they are (see ``HostPhysics.step``)."""
+        self._write_params()
         self.ctrl[:] = self.task.scale_action(action, np)
         before = types.SimpleNamespace(qpos=self.qpos.copy())
-        self.batch.step(nstep=self.frame_skip)
+        self.batch.step(nstep=self.frame_skip, stage=self.stage)
         next_obs = self.task._get_obs(np, self.view)
         reward, terminated, metrics = self.task._reward_done(np, before, self.view, self.ctrl, next_obs)
         out = {"next_obs": next_obs, "reward": reward, "terminated": terminated, "metrics": metrics,
                "obs": next_obs, "ctrl": self.ctrl.copy()}
-        if reset_qpos is not None:
+        if reset_tries is not None:
             done = terminated | force_reset
             if done.any():
                 ids = np.flatnonzero(done)
-                self.reset(ids, reset_qpos[ids], reset_qvel[ids])
+                self.reset(ids, reset_tries[ids])
                 obs = next_obs.copy()
                 obs[ids] = self.obs()[ids]  # (all rows at once: cheaper than gathering the fields)
                 out["obs"] = obs
@@ -338,23 +373,25 @@ class MujocoCEnv(HostCallEnv):
     # -- the program side -----------------------------------------------------------
 
     def _reset_words(self, rng: jax.Array) -> jax.Array:
-        """qpos/qvel drawn with the task's reset noise (``sample_qpos_qvel``), as float32 words."""
-        qpos, qvel = self.task.sample_qpos_qvel(rng)
-        return jnp.concatenate([_words(qpos), _words(qvel)], axis=-1)
+        """The reset's candidates drawn with the task's reset noise (``sample_reset``), as float32 words."""
+        return _words(self.task.sample_reset(rng).reshape(-1))
 
-    def state_from_qpos_qvel(self, qpos: jax.Array, qvel: jax.Array) -> State:
-        """State at qpos/qvel (float32 in the program), as gymnasium's ``reset`` makes it."""
+    def state_from_qpos_qvel(self, qpos: jax.Array, qvel: jax.Array, params=None) -> State:
+        """State at qpos/qvel (and model params; float32 in the program), as gymnasium's ``reset`` makes it."""
         h = self.host
-        words = jnp.concatenate([_words(qpos), _words(qvel)], axis=-1)
+        params = jnp.zeros(h.nparam, jnp.float32) if params is None else params
+        row = jnp.concatenate([jnp.asarray(qpos, jnp.float32), jnp.asarray(qvel, jnp.float32),
+                               jnp.asarray(params, jnp.float32)])
+        words = _words(jnp.tile(row, h.tries))
         return self._fresh(host_call(h.reset_words, words, h.w_reset_out))
 
     # -- host helpers -----------------------------------------------------------------
 
-    def state_from_gymnasium(self, qpos: np.ndarray, qvel: np.ndarray) -> State:
-        """State at float64 qpos/qvel (e.g. copied from a gymnasium env), computed on the host
+    def state_from_gymnasium(self, qpos: np.ndarray, qvel: np.ndarray, params=None) -> State:
+        """State at float64 qpos/qvel (and model params; e.g. copied from a gymnasium env), computed on the host
         without rounding to float32 (outside jit; one env, or a batch with a leading axis)."""
         qpos = np.asarray(qpos, np.float64)
-        rows, obs = self.host.reset(qpos, qvel)
+        rows, obs = self.host.reset(qpos, qvel, params)
         lead = qpos.shape[:-1]
         zero = jnp.zeros(lead, jnp.float32)
         return self._state(jnp.asarray(rows.view(np.uint32).reshape(*lead, -1)),

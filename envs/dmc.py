@@ -1,0 +1,450 @@
+"""DeepMind Control suite tasks (``dmc:<domain>-<task>``) on MuJoCo's C engine and on MJX.
+
+Reference: the installed ``dm_control`` package (``dm_control/suite/<domain>.py``, ``utils/rewards.py``,
+``rl/control.py``, ``mujoco/engine.py``). The models are dm_control's own XML files and their shared assets
+(``suite/common/*.xml``), read from the installed package at run time; the task math (observation, reward,
+reset distribution) is written here once, array-generically (``xp`` is numpy on the C engine's float64 batch,
+``jax.numpy`` on one ``mjx.Data`` in float32), as ``envs/gym_mujoco.py`` does for gymnasium's tasks:
+
+* **observation**: dm_control's ``OrderedDict`` flattened in its key order, each entry flattened;
+* **reward**: dm_control's, with its ``rewards.tolerance`` sigmoids (``tolerance`` below), in [0, 1] per step;
+* **termination**: none (these tasks end at their time limit only: ``done`` is always 0; the 1,000-step limit
+  is the registry's wrapper, ``envs.dmc_names.EPISODE_LENGTH``);
+* **control step**: dm_control's control timestep, i.e. ``frame_skip`` physics steps with the action held;
+  actions in [-1, 1] are the actuators' controls (every actuator here is ctrllimited to [-1, 1]);
+* **derived fields after a step**: dm_control's ``Physics.step`` ends with ``mj_step1``, so positions, rotation
+  matrices and position/velocity sensors belong to the *new* state (a plain ``mj_step`` leaves them one substep
+  behind). The C engine asks ``mujoco.batch.Batch.step`` for ``mjSTAGE_VEL`` at the new state (``step_stage``),
+  MJX runs ``mjx.kinematics`` after the last substep (the fields these tasks read are kinematic);
+* **reset**: dm_control's ``initialize_episode`` distribution drawn with JAX's PRNG in float32 (the same
+  distribution, not the same draws). Model entries a reset draws (Reacher's target position) are per-env model
+  parameters (``model_params``) carried with the physics state. Ball-in-cup's "redraw while penetrating" loop
+  keeps the first of ``reset_tries`` draws without contacts (``HostPhysics`` / ``_first_free`` below).
+"""
+
+from __future__ import annotations
+
+import copy
+import functools
+import importlib.util
+import os
+
+import jax
+import jax.numpy as jnp
+import mujoco
+import numpy as np
+from brax.envs.base import State
+from flax import struct
+from mujoco import mjx
+
+from envs.mujoco_base import GymMujocoEnv, _linesearch_loop, _norm
+
+__all__ = ["BallInCup", "Cartpole", "DmcTask", "PointMass", "Pendulum", "Reacher", "load_model", "tolerance"]
+
+_ASSETS = ("materials.xml", "skybox.xml", "visual.xml")
+
+
+@functools.lru_cache(maxsize=None)
+def _model_files(domain: str) -> tuple[str, tuple[tuple[str, bytes], ...]]:
+    from envs.dmc_names import require_dm_control
+
+    require_dm_control(f"dmc:{domain}")
+    suite = os.path.join(importlib.util.find_spec("dm_control").submodule_search_locations[0], "suite")
+    with open(os.path.join(suite, f"{domain}.xml")) as f:
+        xml = f.read()
+    assets = []
+    for name in _ASSETS:
+        with open(os.path.join(suite, "common", name), "rb") as f:
+            assets.append((f"./common/{name}", f.read()))
+    return xml, tuple(assets)
+
+
+def load_model(domain: str) -> mujoco.MjModel:
+    """dm_control's model of ``domain`` (``suite.<domain>.get_model_and_assets()``: the domain's XML and the
+    suite's common assets, read from the installed package without importing its Python)."""
+    xml, assets = _model_files(domain)
+    return mujoco.MjModel.from_xml_string(xml, dict(assets))
+
+
+def _power2(xp, x, scalar: bool):
+    """``x**2`` as dm_control computes it: on a NumPy float64 scalar it is C ``pow`` (``np.float_power``), on an
+    array ``x * x``; the two differ in the last bit for a few values."""
+    if xp is np and scalar:
+        return np.float_power(x, 2.0)
+    return x * x
+
+
+def tolerance(xp, x, bounds=(0.0, 0.0), margin=0.0, sigmoid="gaussian", value_at_margin=0.1, scalar=False):
+    """dm_control's ``rewards.tolerance``: 1 inside ``bounds`` (inclusive), else a sigmoid of the distance to
+    the nearest bound in units of ``margin`` (0 outside when ``margin`` is 0), worth ``value_at_margin`` at one
+    margin. Element-wise; ``scalar`` says whether dm_control applies it to a scalar (its squares differ, see
+    ``_power2``)."""
+    lower, upper = bounds
+    in_bounds = (lower <= x) & (x <= upper)
+    if margin == 0:
+        return xp.where(in_bounds, 1.0, 0.0).astype(x.dtype)
+    d = xp.where(x < lower, lower - x, x - upper) / margin
+    v = value_at_margin
+    if sigmoid == "gaussian":
+        value = xp.exp(-0.5 * _power2(xp, d * float(np.sqrt(-2 * np.log(v))), scalar))
+    elif sigmoid == "long_tail":
+        value = 1 / (_power2(xp, d * float(np.sqrt(1 / v - 1)), scalar) + 1)
+    elif sigmoid == "reciprocal":
+        value = 1 / (abs(d) * (1 / v - 1) + 1)
+    elif sigmoid == "hyperbolic":
+        value = 1 / xp.cosh(d * float(np.arccosh(1 / v)))
+    elif sigmoid == "linear":
+        scaled = d * (1 - v)
+        value = xp.where(abs(scaled) < 1, 1 - scaled, 0.0)
+    elif sigmoid == "quadratic":
+        scaled = d * float(np.sqrt(1 - v))
+        value = xp.where(abs(scaled) < 1, 1 - _power2(xp, scaled, scalar), 0.0)
+    else:
+        raise ValueError(f"unknown sigmoid {sigmoid!r}")
+    return xp.where(in_bounds, 1.0, value).astype(x.dtype)
+
+
+def _xmat(data):
+    """Rotation matrices as (..., nbody, 9) rows (MJX keeps (nbody, 3, 3), the C engine's batch (n, nbody, 9));
+    dm_control's ``xmat[body, 'zz']`` is entry 8, ``'xz'`` entry 2."""
+    m = data.xmat
+    return m.reshape(*m.shape[:-2], 9) if m.shape[-1] == 3 else m
+
+
+@struct.dataclass
+class MjxState:
+    """The physics state on MJX: the simulation and the env's model parameters (``DmcTask.model_params``)."""
+
+    data: mjx.Data
+    params: jax.Array
+
+
+class DmcTask(GymMujocoEnv):
+    """The shared machinery of the DeepMind Control tasks (one env; the C engine batches it, MJX vmaps it).
+
+    Subclasses set ``domain`` (dm_control's model), implement ``_obs_size``, ``_get_obs``, ``_reward`` and
+    ``sample_reset``, and may set ``control_timestep`` (default: one physics step per control step, as
+    dm_control's ``control.Environment``), ``derived_fields``, ``model_params`` and ``reset_tries``.
+    """
+
+    domain = ""
+    control_timestep: float | None = None
+    step_stage = int(mujoco.mjtStage.mjSTAGE_VEL)
+
+    def __init__(self, early_exit_linesearch: bool = True):
+        model = self._configure(load_model(self.domain))
+        dt = self.control_timestep
+        frame_skip = 1 if dt is None else int(round(dt / model.opt.timestep))
+        super().__init__(model, frame_skip, early_exit_linesearch)
+        self.gym_id = f"dmc:{self.domain}"
+
+    def _configure(self, model: mujoco.MjModel) -> mujoco.MjModel:
+        """The task's fixed changes to the model (e.g. Reacher's target size)."""
+        return model
+
+    def _id(self, kind: str, name: str) -> int:
+        return mujoco.mj_name2id(self.mj_model, getattr(mujoco.mjtObj, f"mjOBJ_{kind.upper()}"), name)
+
+    def _uniform_in(self, rng, shape, low, high):
+        return jax.random.uniform(rng, shape, jnp.float32, low, high)
+
+    def joint_draws(self, rng) -> jax.Array:
+        """dm_control's ``randomize_limited_and_rotational_joints`` on qpos0: limited hinges and slides uniform in
+        their range, unlimited hinges in [-pi, pi), other joints left at qpos0 (ball and free joints are not
+        drawn: no domain of this batch has one)."""
+        m = self.mj_model
+        qpos = self.init_qpos
+        keys = jax.random.split(rng, max(m.njnt, 1))
+        for j in range(m.njnt):
+            kind, adr = m.jnt_type[j], m.jnt_qposadr[j]
+            if kind in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+                if m.jnt_limited[j]:
+                    qpos = qpos.at[adr].set(self._uniform_in(keys[j], (), *m.jnt_range[j]))
+                elif kind == mujoco.mjtJoint.mjJNT_HINGE:
+                    qpos = qpos.at[adr].set(self._uniform_in(keys[j], (), -np.pi, np.pi))
+            else:
+                raise NotImplementedError("ball and free joints are not drawn yet")
+        return qpos
+
+    def _candidate(self, qpos, qvel=None, params=()):
+        """One reset candidate row: qpos, qvel (default zero), model params."""
+        qvel = self.init_qvel if qvel is None else qvel
+        return jnp.concatenate([qpos, qvel, jnp.asarray(params, jnp.float32).reshape(-1)])
+
+    def _reward_done(self, xp, data0, data, ctrl, obs):
+        reward = self._reward(xp, data, ctrl)
+        return reward, xp.zeros(reward.shape, bool), {}
+
+    def _reward(self, xp, data, ctrl):
+        raise NotImplementedError
+
+    # -- MJX -----------------------------------------------------------------------------
+
+    @functools.cached_property
+    def mjx_model(self) -> mjx.Model:
+        """The model on MJX, without the energy flag (cartpole, pendulum, acrobot set it; MJX does not support it
+        and it only computes the energy, which no task reads)."""
+        model = copy.copy(self.mj_model)
+        model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
+        return mjx.put_model(model)
+
+    def _model(self, params: jax.Array) -> mjx.Model:
+        """The MJX model with this env's model parameters written in."""
+        m = self.mjx_model
+        for j, (field, index) in enumerate(self.model_params):
+            value = getattr(m, field)
+            m = m.replace(**{field: value.reshape(-1).at[index].set(params[j]).reshape(value.shape)})
+        return m
+
+    def _place(self, row: jax.Array):
+        nq, nv = self.mj_model.nq, self.mj_model.nv
+        params = row[nq + nv:]
+        data = self._data0.replace(qpos=row[:nq], qvel=row[nq:nq + nv])
+        data = mjx.forward(self._model(params), data)
+        return data, params
+
+    def _first_free(self, tries: jax.Array):
+        """The first candidate whose ``mjx.forward`` finds no contact (the last if none), as ``HostPhysics``."""
+        def penetrating(data):
+            return jnp.any(data._impl.contact.dist < 0)  # MJX keeps every candidate contact, with its distance
+
+        def cond(carry):
+            k, data, _ = carry
+            return (k < len(tries)) & penetrating(data)
+
+        def body(carry):
+            k, _, _ = carry
+            return (k + 1, *self._place(tries[k]))
+
+        return jax.lax.while_loop(cond, body, (jnp.ones((), jnp.int32), *self._place(tries[0])))[1:]
+
+    def reset(self, rng: jax.Array) -> State:
+        tries = self.sample_reset(rng)
+        with _linesearch_loop(self.early_exit_linesearch):
+            data, params = self._place(tries[0]) if self.reset_tries == 1 else self._first_free(tries)
+        zero = jnp.zeros((), jnp.float32)
+        return State(pipeline_state=MjxState(data, params), obs=self._get_obs(jnp, data), reward=zero,
+                     done=zero, metrics={}, info={})
+
+    def state_from_qpos_qvel(self, qpos, qvel, params=()) -> State:
+        """The state at qpos/qvel (and model params), as dm_control's reset leaves it (MJX, float32)."""
+        data, params = self._place(self._candidate(jnp.asarray(qpos, jnp.float32), jnp.asarray(qvel, jnp.float32),
+                                                   params))
+        zero = jnp.zeros((), jnp.float32)
+        return State(pipeline_state=MjxState(data, params), obs=self._get_obs(jnp, data), reward=zero,
+                     done=zero, metrics={}, info={})
+
+    def step(self, state: State, action: jax.Array) -> State:
+        ctrl = self.scale_action(jnp.clip(jnp.asarray(action, jnp.float32), -1.0, 1.0))
+        ps = state.pipeline_state
+        model = self._model(ps.params)
+        with _linesearch_loop(self.early_exit_linesearch):
+            data = jax.lax.fori_loop(0, self.frame_skip, lambda _, d: mjx.step(model, d), ps.data.replace(ctrl=ctrl))
+        data = mjx.kinematics(model, data)  # dm_control's mj_step1: the new state's positions and frames
+        obs = self._get_obs(jnp, data)
+        reward = self._reward(jnp, data, ctrl)
+        return state.replace(pipeline_state=ps.replace(data=data), obs=obs, reward=jnp.asarray(reward, jnp.float32),
+                             done=jnp.zeros((), jnp.float32), metrics={})
+
+
+class Cartpole(DmcTask):
+    """dm_control's ``cartpole`` (one pole): balance / swingup, smooth or sparse reward.
+
+    obs = [cart x, pole zz, pole xz, qvel] (5). Reset: swingup puts the cart at N(0, 0.01^2) and the pole at
+    pi + N(0, 0.01^2) (hanging); balance draws the cart in U(-0.1, 0.1) and the pole in U(-0.034, 0.034);
+    qvel ~ N(0, 0.01^2) in both."""
+
+    domain = "cartpole"
+    derived_fields = ("xmat",)
+
+    def __init__(self, swing_up: bool = True, sparse: bool = False, early_exit_linesearch: bool = True):
+        self.swing_up, self.sparse = bool(swing_up), bool(sparse)
+        super().__init__(early_exit_linesearch)
+
+    def _obs_size(self):
+        return 5
+
+    def _get_obs(self, xp, data):
+        xmat = _xmat(data)
+        return xp.concatenate([data.qpos[..., :1], xmat[..., 2, 8:9], xmat[..., 2, 2:3], data.qvel], axis=-1)
+
+    def sample_reset(self, rng):
+        k_cart, k_pole, k_vel = jax.random.split(rng, 3)
+        if self.swing_up:
+            cart = 0.01 * jax.random.normal(k_cart, (), jnp.float32)
+            pole = jnp.pi + 0.01 * jax.random.normal(k_pole, (), jnp.float32)
+        else:
+            cart = self._uniform_in(k_cart, (), -0.1, 0.1)
+            pole = self._uniform_in(k_pole, (), -0.034, 0.034)
+        qvel = 0.01 * jax.random.normal(k_vel, (self.mj_model.nv,), jnp.float32)
+        return self._candidate(jnp.stack([cart, pole]), qvel)[None]
+
+    def _reward(self, xp, data, ctrl):
+        cart, cosine = data.qpos[..., 0], _xmat(data)[..., 2, 8]
+        if self.sparse:
+            return tolerance(xp, cart, (-0.25, 0.25)) * tolerance(xp, cosine, (0.995, 1.0))
+        upright = (cosine + 1) / 2
+        centered = (1 + tolerance(xp, cart, margin=2, scalar=True)) / 2
+        small_control = (4 + tolerance(xp, ctrl[..., 0], margin=1, value_at_margin=0, sigmoid="quadratic")) / 5
+        small_velocity = (1 + tolerance(xp, data.qvel[..., 1], margin=5)) / 2
+        return upright * small_control * small_velocity * centered
+
+
+class Pendulum(DmcTask):
+    """dm_control's ``pendulum-swingup``: obs = [pole zz, pole xz, angular velocity] (3); reward 1 while the pole
+    is within 8 degrees of upright, else 0; reset: the angle U(-pi, pi), at rest."""
+
+    domain = "pendulum"
+    derived_fields = ("xmat",)
+    _COSINE_BOUND = float(np.cos(np.deg2rad(8)))
+
+    def _obs_size(self):
+        return 3
+
+    def _get_obs(self, xp, data):
+        xmat = _xmat(data)
+        return xp.concatenate([xmat[..., 1, 8:9], xmat[..., 1, 2:3], data.qvel], axis=-1)
+
+    def sample_reset(self, rng):
+        return self._candidate(self._uniform_in(rng, (1,), -np.pi, np.pi))[None]
+
+    def _reward(self, xp, data, ctrl):
+        return tolerance(xp, _xmat(data)[..., 1, 8], (self._COSINE_BOUND, 1.0))
+
+
+class BallInCup(DmcTask):
+    """dm_control's ``ball_in_cup-catch``: obs = [qpos, qvel] (8); reward 1 while the ball is inside the cup's
+    target box, else 0. Control step 0.02 s (10 physics steps). Reset: the cup at rest at its origin, the ball at
+    rest at x ~ U(-0.2, 0.2), z ~ U(0.2, 0.5), redrawn while it touches the cup: the first of 16 draws without
+    contacts is kept (dm_control redraws without limit; a ball touches the cup in ~3% of draws, so keeping the
+    16th when all touch happens with probability ~1e-24)."""
+
+    domain = "ball_in_cup"
+    control_timestep = 0.02
+    derived_fields = ("xpos", "site_xpos")
+    reset_tries = 16
+
+    def __init__(self, early_exit_linesearch: bool = True):
+        super().__init__(early_exit_linesearch)
+        m = self.mj_model
+        self._ball, self._target = self._id("body", "ball"), self._id("site", "target")
+        # dm_control's in_target: |target - ball| < target half-size - ball radius, in x and z.
+        self._inside = np.array(m.site_size[self._target, [0, 2]] - m.geom_size[self._id("geom", "ball"), 0])
+
+    def _obs_size(self):
+        return 8
+
+    def _get_obs(self, xp, data):
+        return xp.concatenate([data.qpos, data.qvel], axis=-1)
+
+    def sample_reset(self, rng):
+        k_x, k_z = jax.random.split(rng)
+        n = self.reset_tries
+        ball = jnp.stack([self._uniform_in(k_x, (n,), -0.2, 0.2), self._uniform_in(k_z, (n,), 0.2, 0.5)], axis=-1)
+        qpos = jnp.concatenate([jnp.broadcast_to(self.init_qpos[:2], (n, 2)), ball], axis=-1)
+        return jax.vmap(self._candidate)(qpos)
+
+    def _reward(self, xp, data, ctrl):
+        to_target = data.site_xpos[..., self._target, ::2] - data.xpos[..., self._ball, ::2]
+        inside = xp.all(abs(to_target) < self._inside.astype(to_target.dtype), axis=-1)
+        return inside.astype(to_target.dtype)
+
+
+class Reacher(DmcTask):
+    """dm_control's ``reacher-easy`` / ``reacher-hard`` (target radius 0.05 / 0.015): obs = [qpos, finger-to-target
+    xy, qvel] (6); reward 1 while the finger touches the target, else 0. Reset: the shoulder U(-pi, pi), the wrist
+    uniform in its range, at rest; the target at angle U(0, 2 pi), radius U(0.05, 0.2) (a per-env model
+    parameter: the target geom's position)."""
+
+    domain = "reacher"
+    derived_fields = ("geom_xpos",)
+
+    def __init__(self, target_size: float = 0.05, early_exit_linesearch: bool = True):
+        self.target_size = float(target_size)
+        super().__init__(early_exit_linesearch)
+        self._finger = self._id("geom", "finger")
+        self._radii = float(self.mj_model.geom_size[self._target, 0] + self.mj_model.geom_size[self._finger, 0])
+
+    def _configure(self, model):
+        self._target = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "target")
+        model.geom_size[self._target, 0] = self.target_size
+        self.model_params = (("geom_pos", 3 * self._target), ("geom_pos", 3 * self._target + 1))
+        return model
+
+    def _obs_size(self):
+        return 6
+
+    def _to_target(self, data):
+        return data.geom_xpos[..., self._target, :2] - data.geom_xpos[..., self._finger, :2]
+
+    def _get_obs(self, xp, data):
+        return xp.concatenate([data.qpos, self._to_target(data), data.qvel], axis=-1)
+
+    def sample_reset(self, rng):
+        k_joints, k_angle, k_radius = jax.random.split(rng, 3)
+        angle = self._uniform_in(k_angle, (), 0.0, 2 * np.pi)
+        radius = self._uniform_in(k_radius, (), 0.05, 0.2)
+        target = jnp.stack([radius * jnp.sin(angle), radius * jnp.cos(angle)])
+        return self._candidate(self.joint_draws(k_joints), params=target)[None]
+
+    def _reward(self, xp, data, ctrl):
+        return tolerance(xp, _norm(xp, self._to_target(data)), (0.0, self._radii))
+
+
+class PointMass(DmcTask):
+    """dm_control's ``point_mass-easy``: obs = [qpos, qvel] (4); reward = near_target * (4 + small_control) / 5
+    (a Gaussian tolerance of the distance to the target, bounds and margin the target's radius; a quadratic
+    tolerance of the two controls, averaged). Reset: both slides uniform in their range, at rest."""
+
+    domain = "point_mass"
+    derived_fields = ("geom_xpos",)
+
+    def __init__(self, early_exit_linesearch: bool = True):
+        super().__init__(early_exit_linesearch)
+        self._mass, self._target = self._id("geom", "pointmass"), self._id("geom", "target")
+        self._size = float(self.mj_model.geom_size[self._target, 0])
+
+    def _obs_size(self):
+        return 4
+
+    def _get_obs(self, xp, data):
+        return xp.concatenate([data.qpos, data.qvel], axis=-1)
+
+    def sample_reset(self, rng):
+        return self._candidate(self.joint_draws(rng))[None]
+
+    def _reward(self, xp, data, ctrl):
+        dist = _norm(xp, data.geom_xpos[..., self._target, :] - data.geom_xpos[..., self._mass, :])
+        near = tolerance(xp, dist, (0.0, self._size), margin=self._size, scalar=True)
+        control = tolerance(xp, ctrl, margin=1, value_at_margin=0, sigmoid="quadratic")
+        return near * ((xp.mean(control, axis=-1) + 4) / 5)
+
+
+class Acrobot(DmcTask):
+    """dm_control's ``acrobot-swingup`` / ``swingup_sparse``: obs = [arms' xz, arms' zz, qvel] (6); reward: the
+    tip within the target sphere (radius 0.2 at height 4) scores 1, the smooth task a Gaussian tolerance of the
+    distance (margin 1) outside. Reset: both joints U(-pi, pi), at rest."""
+
+    domain = "acrobot"
+    derived_fields = ("xmat", "site_xpos")
+
+    def __init__(self, sparse: bool = False, early_exit_linesearch: bool = True):
+        self.sparse = bool(sparse)
+        super().__init__(early_exit_linesearch)
+        self._target, self._tip = self._id("site", "target"), self._id("site", "tip")
+        self._arms = [self._id("body", "upper_arm"), self._id("body", "lower_arm")]
+        self._radius = float(self.mj_model.site_size[self._target, 0])
+
+    def _obs_size(self):
+        return 6
+
+    def _get_obs(self, xp, data):
+        xmat = _xmat(data)[..., self._arms, :]
+        return xp.concatenate([xmat[..., 2], xmat[..., 8], data.qvel], axis=-1)
+
+    def sample_reset(self, rng):
+        return self._candidate(self._uniform_in(rng, (2,), -np.pi, np.pi))[None]
+
+    def _reward(self, xp, data, ctrl):
+        dist = _norm(xp, data.site_xpos[..., self._target, :] - data.site_xpos[..., self._tip, :])
+        return tolerance(xp, dist, (0.0, self._radius), margin=0 if self.sparse else 1, scalar=True)
