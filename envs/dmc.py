@@ -156,7 +156,7 @@ class DmcTask(GymMujocoEnv):
         qpos = self.init_qpos
         keys = jax.random.split(rng, max(m.njnt, 1))
         for j in range(m.njnt):
-            kind, adr = m.jnt_type[j], m.jnt_qposadr[j]
+            kind, adr = mujoco.mjtJoint(int(m.jnt_type[j])), int(m.jnt_qposadr[j])
             if kind in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
                 if m.jnt_limited[j]:
                     qpos = qpos.at[adr].set(self._uniform_in(keys[j], (), *m.jnt_range[j]))
@@ -186,7 +186,8 @@ class DmcTask(GymMujocoEnv):
         and it only computes the energy, which no task reads)."""
         model = copy.copy(self.mj_model)
         model.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_ENERGY)
-        return mjx.put_model(model)
+        with jax.ensure_compile_time_eval():
+            return mjx.put_model(model)
 
     def _model(self, params: jax.Array) -> mjx.Model:
         """The MJX model with this env's model parameters written in."""

@@ -208,14 +208,17 @@ class GymMujocoEnv(Env):
 
     @functools.cached_property
     def mjx_model(self) -> mjx.Model:
-        """The model on MJX (built on first use: the C engine does not need it)."""
-        return mjx.put_model(self.mj_model)
+        """The model on MJX (built on first use, as concrete arrays even inside a trace: the C engine does not
+        need it)."""
+        with jax.ensure_compile_time_eval():
+            return mjx.put_model(self.mj_model)
 
     @functools.cached_property
     def _data0(self) -> mjx.Data:
         """A template mjx.Data (as after gymnasium's mj_resetData) that reset fills in, built once so that
         reset does no host-side work."""
-        return mjx.make_data(self.mjx_model)
+        with jax.ensure_compile_time_eval():
+            return mjx.make_data(self.mjx_model)
 
     # -- Brax Env interface -------------------------------------------------
 
