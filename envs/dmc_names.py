@@ -13,19 +13,19 @@ __all__ = ["DEFAULT_BUDGET", "EPISODE_LENGTH", "EVAL_EVERY", "TASKS", "parse_nam
            "constructor", "task_spec"]
 
 # dm_control's suite names -> "module:class" of our task and its keyword arguments. A later batch of domains
-# adds its rows here (and its classes in a module of its own).
+# adds its rows here (and its classes in a module of its own, on envs/dmc.py's DmcTask).
 TASKS: dict[str, tuple[str, dict]] = {
-    "cartpole-balance": ("envs.dmc:Cartpole", {"swing_up": False, "sparse": False}),
-    "cartpole-balance_sparse": ("envs.dmc:Cartpole", {"swing_up": False, "sparse": True}),
-    "cartpole-swingup": ("envs.dmc:Cartpole", {"swing_up": True, "sparse": False}),
-    "cartpole-swingup_sparse": ("envs.dmc:Cartpole", {"swing_up": True, "sparse": True}),
-    "pendulum-swingup": ("envs.dmc:Pendulum", {}),
-    "ball_in_cup-catch": ("envs.dmc:BallInCup", {}),
-    "reacher-easy": ("envs.dmc:Reacher", {"target_size": 0.05}),
-    "reacher-hard": ("envs.dmc:Reacher", {"target_size": 0.015}),
-    "point_mass-easy": ("envs.dmc:PointMass", {}),
-    "acrobot-swingup": ("envs.dmc:Acrobot", {"sparse": False}),
-    "acrobot-swingup_sparse": ("envs.dmc:Acrobot", {"sparse": True}),
+    "cartpole-balance": ("envs.dmc_classic:Cartpole", {"swing_up": False, "sparse": False}),
+    "cartpole-balance_sparse": ("envs.dmc_classic:Cartpole", {"swing_up": False, "sparse": True}),
+    "cartpole-swingup": ("envs.dmc_classic:Cartpole", {"swing_up": True, "sparse": False}),
+    "cartpole-swingup_sparse": ("envs.dmc_classic:Cartpole", {"swing_up": True, "sparse": True}),
+    "pendulum-swingup": ("envs.dmc_classic:Pendulum", {}),
+    "ball_in_cup-catch": ("envs.dmc_classic:BallInCup", {}),
+    "reacher-easy": ("envs.dmc_classic:Reacher", {"target_size": 0.05}),
+    "reacher-hard": ("envs.dmc_classic:Reacher", {"target_size": 0.015}),
+    "point_mass-easy": ("envs.dmc_classic:PointMass", {}),
+    "acrobot-swingup": ("envs.dmc_classic:Acrobot", {"sparse": False}),
+    "acrobot-swingup_sparse": ("envs.dmc_classic:Acrobot", {"sparse": True}),
 }
 
 # Every task of this batch ends at dm_control's time limit only (its tasks' ``get_termination`` is None): 1,000
