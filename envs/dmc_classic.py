@@ -83,8 +83,8 @@ class BallInCup(DmcTask):
     """dm_control's ``ball_in_cup-catch``: obs = [qpos, qvel] (8); reward 1 while the ball is inside the cup's
     target box, else 0. Control step 0.02 s (10 physics steps). Reset: the cup at rest at its origin, the ball at
     rest at x ~ U(-0.2, 0.2), z ~ U(0.2, 0.5), redrawn while it touches the cup: the first of 16 draws without
-    contacts is kept (dm_control redraws without limit; a ball touches the cup in ~3% of draws, so keeping the
-    16th when all touch happens with probability ~1e-24)."""
+    contacts is kept (dm_control redraws without limit; 18% of draws touch the cup, so all 16 touch, and the 16th is
+    kept, with probability ~1e-12)."""
 
     domain = "ball_in_cup"
     control_timestep = 0.02

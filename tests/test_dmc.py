@@ -74,6 +74,22 @@ def test_the_compiled_c_engine_gives_dm_controls_episode(name):
     assert np.ptp(next_obs[:, 0]) > 0.01  # the physics moved
 
 
+@pytest.mark.parametrize("name", ["cartpole-swingup", "ball_in_cup-catch", "reacher-hard"])
+def test_the_host_gives_dm_controls_float64_numbers(name):
+    """On the host (no program, float64), 300 steps: observations and rewards are dm_control's to the bit."""
+    dm, ts, (qpos, qvel, params) = _dm_start(name, seed=3)
+    host = envs.make_raw(f"dmc:{name}", physics="mujoco").host
+    rows, obs = host.reset(qpos[None], qvel[None], params[None])
+    np.testing.assert_array_equal(obs[0], _flat(ts.observation))
+    actions = np.random.default_rng(2).uniform(-1, 1, (300, 1, host.nu)).astype(np.float32)
+    for t in range(len(actions)):
+        r = host.step(rows, actions[t])
+        ts = dm.step(actions[t, 0].astype(np.float64))
+        np.testing.assert_array_equal(r["next_obs"][0], _flat(ts.observation), err_msg=f"step {t}")
+        assert r["reward"][0] == ts.reward, f"step {t}"
+        rows = r["rows"]
+
+
 def test_the_c_engine_step_computes_the_new_states_frames():
     """dm_control's step ends with mj_step1, so the frames the observation reads are the new state's: on the
     host, our state rows rebuilt by mj_forward give the same observation as the step returned."""
