@@ -41,8 +41,13 @@ def _dm_start(name, seed):
     return env, ts, (env.physics.data.qpos.copy(), env.physics.data.qvel.copy(), np.array(params))
 
 
-# Every task of the batch (each costs a C-engine compile and 1,000 dm_control steps: 1-3 s).
-@pytest.mark.parametrize("name", list(dmc_names.TASKS))
+# Every task of the batch (each costs a C-engine compile and 1,000 dm_control steps: 1-3 s); three of them, one per
+# kind of reset (plain, rejection, a model parameter), in the fast tier.
+FAST = ("cartpole-swingup_sparse", "ball_in_cup-catch", "reacher-hard")
+
+
+@pytest.mark.parametrize("name", [n if n in FAST else pytest.param(n, marks=pytest.mark.slow)
+                                  for n in dmc_names.TASKS])
 def test_the_compiled_c_engine_gives_dm_controls_episode(name):
     """A whole episode (1,000 steps) of uniform random actions through envs.make's wrappers in jit: observations
     and rewards are dm_control's float64 numbers cast to float32, and the episode ends at dm_control's last
@@ -74,7 +79,7 @@ def test_the_compiled_c_engine_gives_dm_controls_episode(name):
     assert np.ptp(next_obs[:, 0]) > 0.01  # the physics moved
 
 
-@pytest.mark.parametrize("name", ["cartpole-swingup", "ball_in_cup-catch", "reacher-hard"])
+@pytest.mark.parametrize("name", FAST)
 def test_the_host_gives_dm_controls_float64_numbers(name):
     """On the host (no program, float64), 300 steps: observations and rewards are dm_control's to the bit."""
     dm, ts, (qpos, qvel, params) = _dm_start(name, seed=3)
