@@ -27,9 +27,14 @@ Every field that ``mj_step``/``mj_forward`` (and ``mj_rnePostConstraint``) compu
 bit, whatever the env reads. ``P`` is captured by replacing the instance's ``_step_mujoco_simulation``
 (gymnasium's ``do_simulation`` core: ``ctrl``, ``mj_step`` x frame_skip, ``mj_rnePostConstraint``) with the
 same calls split before the last ``mj_step`` (``mj_step(nstep=k)`` is ``k`` calls of ``mj_step``). The cost is
-one extra ``mj_step`` per env step, plus gymnasium's Python step per env (the envs of a batch are stepped one
-after another; ``physics_threads`` does not apply). The row is float64, carried bit for bit as uint32 words
-in the JAX state, so checkpoints, bit-for-bit resume and the rest work as for the built-in tasks.
+one extra ``mj_step`` per env step, plus gymnasium's Python step per env. The row is float64, carried bit for
+bit as uint32 words in the JAX state, so checkpoints, bit-for-bit resume and the rest work as for the built-in
+tasks.
+
+Threads: with ``physics_threads`` above 1 the host holds one gymnasium instance per thread and each thread steps
+a contiguous slice of the batch (``mj_step`` releases the GIL; gymnasium's Python around it does not, so the
+gain is the physics' share of a step). Each env is rebuilt from its own row, so which instance steps it changes
+nothing: the numbers are one thread's bit for bit (tests/test_gym_tasks.py).
 
 Observations and rewards reach the program as float32 casts of gymnasium's float64 numbers; the reward
 components are the scalar entries of gymnasium's ``info`` (those of a probe step at construction). Actions
@@ -64,6 +69,7 @@ import mujoco
 import numpy as np
 
 from envs.gym_names import make_gymnasium_env, parse_name
+from envs.host_call import resolve_threads
 from envs.mujoco_c import STATE_SPEC, HostCallEnv, pack_step
 
 __all__ = ["GymnasiumCEnv", "GymnasiumHost"]
@@ -73,17 +79,11 @@ def _scalar(value: Any) -> bool:
     return np.ndim(value) == 0 and isinstance(np.asarray(value).item(), numbers.Number)
 
 
-class GymnasiumHost:
-    """The host side of a ``gym:`` task (see the module docstring): gymnasium's env, rebuilt from each env's
-    replay row before its own ``step`` / ``reset`` runs.
+class _Replayer:
+    """One gymnasium env instance and the replay of a row on it (the module docstring): gymnasium's
+    ``do_simulation`` core split before its last ``mj_step``. A host holds one per thread."""
 
-    ``step`` / ``reset`` / ``integration_state`` are plain numpy functions (float64; used by the callbacks and
-    by tests that compare with gymnasium); ``step_words`` / ``reset_words`` are the callbacks' entry points
-    (``envs.mujoco_c.HostCallEnv``'s host protocol).
-    """
-
-    def __init__(self, name: str, **overrides):
-        from gymnasium import spaces
+    def __init__(self, name: str, overrides: dict):
         from gymnasium.envs.mujoco import MujocoEnv
 
         self.env = env = make_gymnasium_env(name, **overrides)
@@ -91,9 +91,66 @@ class GymnasiumHost:
             raise ValueError(f"{name}: {type(env).__name__} overrides MujocoEnv._step_mujoco_simulation; the "
                              f"C-engine path replays gymnasium's own")
         self.model, self.data = env.model, env.data
+        self.before_last = np.empty(mujoco.mj_stateSize(self.model, STATE_SPEC))
+        self.simulated = 0
+        env._step_mujoco_simulation = self._simulate
+
+    def _simulate(self, ctrl, n_frames) -> None:
+        """``MujocoEnv._step_mujoco_simulation`` (ctrl, ``mj_step`` x n_frames, ``mj_rnePostConstraint``),
+        keeping the integration state before the last ``mj_step``."""
+        m, d = self.model, self.data
+        d.ctrl[:] = ctrl
+        if n_frames > 1:
+            mujoco.mj_step(m, d, nstep=n_frames - 1)
+        mujoco.mj_getState(m, d, self.before_last, STATE_SPEC)
+        mujoco.mj_step(m, d)
+        mujoco.mj_rnePostConstraint(m, d)
+        self.simulated += 1
+
+    def get_state(self) -> np.ndarray:
+        out = np.empty(len(self.before_last))
+        mujoco.mj_getState(self.model, self.data, out, STATE_SPEC)
+        return out
+
+    def restore(self, row: np.ndarray) -> None:
+        """The instance's ``MjData`` as gymnasium left it, from a replay row (module docstring)."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        mujoco.mj_setState(m, d, row[1:], STATE_SPEC)
+        if row[0] == 0.0:
+            mujoco.mj_forward(m, d)
+        else:
+            mujoco.mj_step(m, d)
+            mujoco.mj_rnePostConstraint(m, d)
+
+    def reset_one(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        obs, _ = self.env.reset(seed=int(seed))
+        return np.concatenate([[0.0], self.get_state()]), obs
+
+
+class GymnasiumHost:
+    """The host side of a ``gym:`` task (see the module docstring): gymnasium's env, rebuilt from each env's
+    replay row before its own ``step`` / ``reset`` runs; with ``threads`` above 1, one instance per thread,
+    each stepping a slice of the batch.
+
+    ``step`` / ``reset`` / ``integration_state`` are plain numpy functions (float64; used by the callbacks and
+    by tests that compare with gymnasium); ``step_words`` / ``reset_words`` are the callbacks' entry points
+    (``envs.mujoco_c.HostCallEnv``'s host protocol).
+    """
+
+    def __init__(self, name: str, threads: int | None = None, **overrides):
+        from gymnasium import spaces
+
+        self.threads = resolve_threads(threads)
+        self._name, self._overrides = name, overrides
+        first = _Replayer(name, overrides)
+        self._replayers = [first]   # more, one per thread, on the first call that uses them
+        self._pool = None
+        self.env, self.model, self.data = first.env, first.model, first.data
         self.nstate = mujoco.mj_stateSize(self.model, STATE_SPEC)
         self.nrow = 1 + self.nstate  # [mode | integration state]
         self.nq, self.nv, self.nu = self.model.nq, self.model.nv, self.model.nu
+        env = first.env
         obs_space, act_space = env.observation_space, env.action_space
         if not (isinstance(obs_space, spaces.Box) and len(obs_space.shape) == 1):
             raise ValueError(f"{name}: the observation space {obs_space} is not a flat Box")
@@ -110,10 +167,6 @@ class GymnasiumHost:
             self.low, self.high = np.float64(act_space.low), np.float64(act_space.high)
         if not (np.isfinite(self.low).all() and np.isfinite(self.high).all() and (self.low < self.high).all()):
             raise ValueError(f"{name}: the action space {act_space} has no finite range to map [-1, 1] onto")
-        # gymnasium's do_simulation core, split before its last mj_step (module docstring).
-        self._before_last = np.empty(self.nstate)
-        self._simulated = 0
-        env._step_mujoco_simulation = self._simulate
         self._lock = threading.Lock()
         try:
             self.metric_keys = self._probe(name)
@@ -126,57 +179,42 @@ class GymnasiumHost:
         self.w_step_out = self.w_state + 2 * self.obs_size + 2 + len(self.metric_keys)
         self.w_reset_out = self.w_state + self.obs_size
 
-    def _simulate(self, ctrl, n_frames) -> None:
-        """``MujocoEnv._step_mujoco_simulation`` (ctrl, ``mj_step`` x n_frames, ``mj_rnePostConstraint``),
-        keeping the integration state before the last ``mj_step``."""
-        m, d = self.model, self.data
-        d.ctrl[:] = ctrl
-        if n_frames > 1:
-            mujoco.mj_step(m, d, nstep=n_frames - 1)
-        mujoco.mj_getState(m, d, self._before_last, STATE_SPEC)
-        mujoco.mj_step(m, d)
-        mujoco.mj_rnePostConstraint(m, d)
-        self._simulated += 1
-
     def _probe(self, name: str) -> tuple[str, ...]:
         """One reset and two steps: the replay rebuilds gymnasium's state, and the scalar ``info`` entries
         (the reward components and the like) that become the state's ``metrics``."""
+        r = self._replayers[0]
         rows = self.reset(np.array([0]))[0]
         info = {}
         for action in (np.zeros((1, self.nu)), np.full((1, self.nu), 0.5)):
-            self._simulated = 0
-            self._restore(rows[0])
-            _, _, _, _, info = self.env.step(self.scale_action(action)[0])
-            if self._simulated == 0:
+            r.simulated = 0
+            r.restore(rows[0])
+            _, _, _, _, info = r.env.step(self.scale_action(action)[0])
+            if r.simulated == 0:
                 raise ValueError(f"{name}: its step does not simulate through MujocoEnv.do_simulation")
-            state = self._get_state()
-            rows = np.concatenate([[1.0], self._before_last])[None]
-            self._restore(rows[0])
-            if not np.array_equal(self._get_state(), state):
+            state = r.get_state()
+            rows = np.concatenate([[1.0], r.before_last])[None]
+            r.restore(rows[0])
+            if not np.array_equal(r.get_state(), state):
                 raise ValueError(f"{name}: replaying its step's last mj_step does not give its state")
         return tuple(k for k, v in info.items() if _scalar(v))
 
-    # -- the replay row ---------------------------------------------------------------
+    def _each(self, n: int, work) -> None:
+        """``work(replayer, ids)`` over the batch's n envs: one contiguous slice of ids per thread (at most n),
+        the slices stepped at once on the thread pool; one slice runs on the calling thread."""
+        k = min(self.threads, n)
+        if k <= 1:
+            work(self._replayers[0], range(n))
+            return
+        while len(self._replayers) < k:
+            self._replayers.append(_Replayer(self._name, self._overrides))
+        if self._pool is None:
+            from concurrent.futures import ThreadPoolExecutor
 
-    def _get_state(self) -> np.ndarray:
-        out = np.empty(self.nstate)
-        mujoco.mj_getState(self.model, self.data, out, STATE_SPEC)
-        return out
-
-    def _restore(self, row: np.ndarray) -> None:
-        """The instance's ``MjData`` as gymnasium left it, from a replay row (module docstring)."""
-        m, d = self.model, self.data
-        mujoco.mj_resetData(m, d)
-        mujoco.mj_setState(m, d, row[1:], STATE_SPEC)
-        if row[0] == 0.0:
-            mujoco.mj_forward(m, d)
-        else:
-            mujoco.mj_step(m, d)
-            mujoco.mj_rnePostConstraint(m, d)
-
-    def _reset_one(self, seed: int) -> tuple[np.ndarray, np.ndarray]:
-        obs, _ = self.env.reset(seed=int(seed))
-        return np.concatenate([[0.0], self._get_state()]), obs
+            self._pool = ThreadPoolExecutor(self.threads, thread_name_prefix="gym-physics")
+        bounds = np.linspace(0, n, k + 1).astype(int)
+        futures = [self._pool.submit(work, self._replayers[j], range(bounds[j], bounds[j + 1])) for j in range(k)]
+        for f in futures:
+            f.result()
 
     # -- numpy API (float64) ------------------------------------------------------
 
@@ -188,19 +226,24 @@ class GymnasiumHost:
         """gymnasium's ``reset(seed=s)`` for each of ``seeds`` (n,): (replay rows (n, nrow), obs (n, obs))."""
         seeds = np.asarray(seeds).reshape(-1)
         rows, obs = np.empty((len(seeds), self.nrow)), np.empty((len(seeds), self.obs_size))
+
+        def work(r: _Replayer, ids) -> None:
+            for i in ids:
+                rows[i], obs[i] = r.reset_one(int(seeds[i]))
+
         with self._lock:
-            for i, seed in enumerate(seeds):
-                rows[i], obs[i] = self._reset_one(int(seed))
+            self._each(len(seeds), work)
         return rows, obs
 
     def integration_state(self, rows: np.ndarray) -> np.ndarray:
         """The integration state (``mj_getState``, mjSTATE_INTEGRATION) each replay row stands for (n, nstate)."""
         rows = np.asarray(rows, np.float64).reshape(-1, self.nrow)
         out = np.empty((len(rows), self.nstate))
+        r = self._replayers[0]
         with self._lock:
             for i, row in enumerate(rows):
-                self._restore(row)
-                out[i] = self._get_state()
+                r.restore(row)
+                out[i] = r.get_state()
         return out
 
     def step(self, rows: np.ndarray, action: np.ndarray, reset_seeds=None, force_reset=None) -> dict:
@@ -220,21 +263,26 @@ class GymnasiumHost:
         metrics = {k: np.zeros(n) for k in self.metric_keys}
         new_rows = np.empty((n, self.nrow))
         new_rows[:, 0] = 1.0
-        obs = next_obs
-        with self._lock:
-            for i in range(n):
-                self._restore(rows[i])
-                o, r, term, _, info = self.env.step(ctrl[i])
-                next_obs[i], reward[i], terminated[i] = o, r, term
+        obs = next_obs.copy() if reset_seeds is not None else next_obs
+        done = np.zeros(n, bool) if reset_seeds is None else np.asarray(force_reset, bool).reshape(n)
+
+        def work(r: _Replayer, ids) -> None:
+            for i in ids:
+                r.restore(rows[i])
+                o, rew, term, _, info = r.env.step(ctrl[i])
+                next_obs[i], reward[i], terminated[i] = o, rew, term
                 for k in self.metric_keys:
                     metrics[k][i] = info.get(k, 0.0)
-                new_rows[i, 1:] = self._before_last
-            if reset_seeds is not None:
-                done = terminated | np.asarray(force_reset, bool).reshape(n)
-                if done.any():
-                    obs = next_obs.copy()
-                    for i in np.flatnonzero(done):
-                        new_rows[i], obs[i] = self._reset_one(int(reset_seeds[i]))
+                new_rows[i, 1:] = r.before_last
+                if reset_seeds is None:
+                    continue
+                if term or done[i]:
+                    new_rows[i], obs[i] = r.reset_one(int(reset_seeds[i]))
+                else:
+                    obs[i] = o
+
+        with self._lock:
+            self._each(n, work)
         return {"next_obs": next_obs, "reward": reward, "terminated": terminated, "metrics": metrics,
                 "rows": new_rows, "obs": obs, "ctrl": ctrl}
 
@@ -283,11 +331,8 @@ class GymnasiumCEnv(HostCallEnv):
     """
 
     def __init__(self, name: str, threads: int | None = None, **overrides):
-        # threads: accepted for envs.make's signature; gymnasium's Python step runs the envs one after another.
-        if threads is not None and int(threads) < 1:
-            raise ValueError(f"physics threads must be >= 1, got {threads}")
         self.name = name
-        self.host = GymnasiumHost(name, **overrides)
+        self.host = GymnasiumHost(name, threads, **overrides)
         self.gym_id = parse_name(name)[0]
         self.mj_model = self.host.model
         self.frame_skip = int(self.host.env.frame_skip)

@@ -25,15 +25,38 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["default_threads", "host_call"]
+__all__ = ["THREADS_VARIABLE", "default_threads", "host_call", "resolve_threads"]
+
+
+# What ``--physics-threads`` sets (experiments.run, experiments.sweep): the C engine's threads per batch for every
+# env this process builds without an explicit count.
+THREADS_VARIABLE = "METAPG_PHYSICS_THREADS"
 
 
 def default_threads() -> int:
-    """MuJoCo threads per batch: the CPUs this process may run on."""
+    """MuJoCo threads per batch when none is given: ``$METAPG_PHYSICS_THREADS`` if set, else the CPUs this
+    process may run on. ``ValueError`` (one line) for a bad value of the variable."""
+    value = os.environ.get(THREADS_VARIABLE, "").strip()
+    if value:
+        return resolve_threads(value, f"{THREADS_VARIABLE}=")
     try:
         return max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # not Linux
         return max(1, os.cpu_count() or 1)
+
+
+def resolve_threads(threads, what: str = "physics threads ") -> int:
+    """A thread count (an int >= 1, or its digits) or None (``default_threads``); ``ValueError`` (one line)
+    otherwise. The count changes no number (each env steps on its own), only the speed."""
+    if threads is None:
+        return default_threads()
+    try:
+        n = int(threads)
+    except (TypeError, ValueError):
+        n = 0
+    if isinstance(threads, bool) or n < 1 or str(n) != str(threads).strip():
+        raise ValueError(f"{what}must be a whole number >= 1, got {threads!r}")
+    return n
 
 
 def host_call(fn, words: jax.Array, width: int) -> jax.Array:

@@ -60,7 +60,7 @@ import numpy as np
 from brax.envs.base import Env, State
 from mujoco import batch as mj_batch
 
-from envs.host_call import _floats, _words, default_threads, host_call
+from envs.host_call import _floats, _words, host_call, resolve_threads
 
 __all__ = ["HostCallEnv", "MujocoCEnv", "HostPhysics", "STATE_SPEC"]
 
@@ -98,9 +98,7 @@ class HostPhysics:
         self.task = task
         self.model = task.mj_model
         self.frame_skip = int(task.frame_skip)
-        self.threads = default_threads() if threads is None else int(threads)
-        if self.threads < 1:
-            raise ValueError(f"physics threads must be >= 1, got {threads}")
+        self.threads = resolve_threads(threads)
         self.nstate = mujoco.mj_stateSize(self.model, STATE_SPEC)
         self.nq, self.nv, self.nu = self.model.nq, self.model.nv, self.model.nu
         self.params, self.tries = tuple(task.model_params), int(task.reset_tries)

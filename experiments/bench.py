@@ -9,6 +9,7 @@
     python -m experiments.bench --main-job            # the README's main job: cold compile, first 60k steps
     python -m experiments.bench --checkpoint          # a checkpoint's seconds and bytes: main job, 10-seed modern cell
     python -m experiments.bench --checkpoint-sigterm  # the main job sent SIGTERM: --term-grace 0 vs the default
+    python -m experiments.bench --threads             # the C engine at 1 thread and at every core: stepping, training
 
 For every (task, method, preset, seeds) it runs a fresh subprocess (so peak
 memory and compile caches are its own) that measures, in one process:
@@ -134,6 +135,13 @@ def main(argv: list[str] | None = None) -> int:
                    help="the main job sent SIGTERM in its 4th chunk, before its first checkpoint (a second into the "
                         "chunk with --term-grace 0 and the default, and 10 s before its end with the default): its "
                         "exit, its checkpoint and the training it lost")
+    p.add_argument("--threads", action="store_true",
+                   help="MuJoCo's C engine at 1 thread and at every core: env stepping alone (--envs, default "
+                        "hopper,halfcheetah,inverted_double_pendulum,gym:Walker2d-v5; --threads-envs counts) and "
+                        "10-seed TD3 training (--threads-training tasks); results/benchmarks/threads.md")
+    p.add_argument("--threads-envs", default="8,10,32", help="env counts of --threads (default 8,10,32)")
+    p.add_argument("--threads-training", default="hopper,halfcheetah,gym:Walker2d-v5",
+                   help="tasks of --threads' training rows ('' for none; default hopper,halfcheetah,gym:Walker2d-v5)")
     p.add_argument("--note", default="", help="a line on the machine's conditions, written with --checkpoint's tables")
     p.add_argument("--one", default=None, help=argparse.SUPPRESS)  # internal: measure one spec (JSON)
     args = p.parse_args(argv)
@@ -143,6 +151,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     import envs
 
+    if args.threads:
+        return _threads(args)
     tasks = args.envs.split(",") if args.envs else (list(envs.TASKS) if args.env_speed else
                                                    ["pendulum", "inverted_double_pendulum"])
     unknown = [t for t in tasks if t not in envs.TASKS]
@@ -317,6 +327,63 @@ def _checkpoint(args: argparse.Namespace, meta: dict) -> int:
                 print(f"  {rows[-1]}", flush=True)
                 runfiles.write_json_atomic(meta["json"], {"meta": meta, "rows": rows})
         write_section(out, "checkpoint-sigterm", checkpoint_cost.sigterm_markdown(rows, meta, steps))
+    print(f"wrote {out}", flush=True)
+    return 0
+
+
+def _threads(args: argparse.Namespace) -> int:
+    """``--threads``: its checks, measurements, JSON and markdown (``experiments/benchmarks/threads.py``)."""
+    import envs
+    import jax
+
+    from envs.host_call import default_threads
+    from experiments.benchmarks import threads as bench_threads
+    from metapg_jax.host import provenance, runfiles
+
+    tasks = (args.envs or "hopper,halfcheetah,inverted_double_pendulum,gym:Walker2d-v5").split(",")
+    training = [t for t in args.threads_training.split(",") if t]
+    try:
+        for t in tasks + training:
+            if not envs.has_mujoco(t):
+                raise ValueError(f"--threads measures MuJoCo's C engine; {t} is a JAX task")
+        counts = [int(x) for x in args.threads_envs.split(",")]
+        if min(counts) <= 0 or args.repeats <= 0:
+            raise ValueError("--threads-envs and --repeats must be positive")
+    except ValueError as err:
+        print(f"error: {str(err).splitlines()[0]}", file=sys.stderr)
+        return 2
+    n = default_threads()
+    if n < 2:
+        print(f"error: --threads compares 1 thread with several, and this process may use {n} CPU", file=sys.stderr)
+        return 2
+    _cold_compiles()
+    out = args.out or os.path.join(BENCH_DIR, "threads.md")
+    meta = {"date": time.strftime("%Y-%m-%d"), "jax": jax.__version__, "threads": n, "repeats": args.repeats,
+            "machine": f"{platform.machine()}, {os.cpu_count()} cores, {platform.python_version()}",
+            "json": args.json or os.path.splitext(out)[0] + ".json",
+            "conditions": f"load average {os.getloadavg()[0]:.1f} when it started" + (f"; {args.note}" if args.note else ""),
+            **{k: v for k, v in provenance.record().items() if k in ("commit", "dirty")}}
+    if not os.path.exists(out):
+        with open(out, "w") as f:
+            f.write("# MuJoCo's C engine on one thread and on several\n")
+    stepping, trained = [], []
+
+    def save():
+        runfiles.write_json_atomic(meta["json"], {"meta": meta, "stepping": stepping, "training": trained})
+        write_section(out, "threads", bench_threads.threads_markdown(stepping, trained, meta))
+
+    for task in tasks:
+        for num in counts:
+            print(f"stepping {task}, {num} envs ...", flush=True)
+            stepping.append(bench_threads.measure_stepping(task, num, n, repeats=args.repeats))
+            save()
+            print(bench_threads.threads_markdown(stepping, [], meta).splitlines()[-1], flush=True)
+    for task in training:
+        for k in (1, n):
+            print(f"training {task}, {k} thread(s) ...", flush=True)
+            trained.append(bench_threads.measure_training(task, k, repeats=args.repeats))
+            save()
+            print(f"  {trained[-1]['steps_per_s']:,.0f} env steps/s", flush=True)
     print(f"wrote {out}", flush=True)
     return 0
 

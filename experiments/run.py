@@ -59,9 +59,9 @@ from metapg_jax.host import compile_cache
 from metapg_jax.host.processes import maybe_initialize_distributed
 from metapg_jax.host.runner import TERM_GRACE, restart_command
 
-from experiments.training.args import (RUN_ARGS, add_stop_options, check_devices, check_new_out, check_stop_options,
-                                       config_from_run_args, flags, preload_plugins, resolved_run_args, resume_args,
-                                       run_args, run_label)
+from experiments.training.args import (RUN_ARGS, add_physics_threads_option, add_stop_options, apply_physics_threads,
+                                       check_devices, check_new_out, check_stop_options, config_from_run_args, flags,
+                                       preload_plugins, resolved_run_args, resume_args, run_args, run_label)
 from experiments.training.finish import finalize
 from experiments.training.memory import abstract_keys, check_fits, state_bytes
 
@@ -120,6 +120,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint-minutes", type=float, default=5.0,
                    help="with --checkpoint-every=0: minimum minutes between checkpoints (default 5)")
     add_stop_options(p)
+    add_physics_threads_option(p)
     p.add_argument("--compile-cache", default=None, metavar="DIR|off",
                    help="keep compiled programs on disk for the next run or resume (default: "
                         "$JAX_COMPILATION_CACHE_DIR, else ~/.cache/metapg-jax/xla; 'off' compiles afresh; "
@@ -152,6 +153,7 @@ def prepare(args: argparse.Namespace) -> tuple[config_lib.Config, dict, str, boo
     the stored budget when the resume extends it, else None)."""
     extend_from = None
     check_stop_options(args.checkpoint_every, args.checkpoint_minutes, args.term_grace)
+    apply_physics_threads(args.physics_threads)
     if args.tensorboard:
         from metapg_jax.host import tb_events
 

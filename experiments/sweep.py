@@ -72,6 +72,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--checkpoint-minutes", type=float, default=5.0,
                    help="minimum minutes between checkpoints of a group (and at its end; default 5)")
     training_args.add_stop_options(p, "; for the group that runs")
+    training_args.add_physics_threads_option(p)
     p.add_argument("--compile-cache", default=None, metavar="DIR|off", help="as experiments.run --compile-cache")
     p.add_argument("--no-plot", action="store_true", help="skip sweep.png")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -197,6 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         training_args.check_stop_options(0, args.checkpoint_minutes, args.term_grace)
+        training_args.apply_physics_threads(args.physics_threads)
         a, grid, out = prepare(args)
         settings, configs, groups, env = plan(a, grid)
         check_fits(a, configs, groups, env)

@@ -28,14 +28,20 @@ _session_compile_cache()
 
 
 @pytest.fixture(autouse=True)
-def _back_to_the_session_compile_cache():
+def _back_to_the_session_settings():
     """After each test, this process compiles into the pytest run's cache again: a test that runs
     ``experiments.run`` or ``experiments.sweep`` in-process with ``--compile-cache=off`` or a folder of its
-    own leaves JAX pointed there, and every later test in that worker would compile afresh."""
+    own leaves JAX pointed there, and every later test in that worker would compile afresh. The C engine's
+    thread count (``--physics-threads``) goes back to what it was too."""
+    threads = os.environ.get("METAPG_PHYSICS_THREADS")
     yield
     from metapg_jax.host import compile_cache
 
     compile_cache.enable(compile_cache.resolve(None))
+    if threads is None:
+        os.environ.pop("METAPG_PHYSICS_THREADS", None)
+    else:
+        os.environ["METAPG_PHYSICS_THREADS"] = threads
 
 
 # The modules whose tests take longest on 2 cores in either tier (measured with --durations), started first so that the

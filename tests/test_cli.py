@@ -58,6 +58,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     (["--term-grace=-1"], "--term-grace must be a finite number of seconds >= 0 (0: a SIGTERM stops at once), got -1"),
     (["--term-grace=nan"], "--term-grace must be a finite number of seconds >= 0"),
     (["--checkpoint-minutes=0"], "--checkpoint-minutes must be > 0, got 0"),
+    (["--physics-threads=0"], "--physics-threads must be a whole number >= 1, got '0'"),
+    (["--physics-threads=two"], "--physics-threads must be a whole number >= 1, got 'two'"),
 ])
 def test_bad_input_exits_2_with_one_line(argv, message, capsys):
     assert run.main(argv) == 2

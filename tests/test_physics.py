@@ -225,8 +225,42 @@ def test_engines_refuse_what_they_cannot_run():
         envs.make("hopper", source="brax", physics="mujoco")
     with pytest.raises(ValueError, match="pendulum is a JAX task"):
         envs.make("pendulum", physics="mujoco")
-    with pytest.raises(ValueError, match="physics threads must be >= 1"):
+    with pytest.raises(ValueError, match="physics threads must be a whole number >= 1, got 0"):
         HostPhysics(GYMNASIUM_TASKS["reacher"](), threads=0)
+
+
+def test_threads_step_the_batch_to_the_numbers_of_one_thread(monkeypatch):
+    """MuJoCo's batch on 1, 2 and 3 threads from the same rows, actions and resets (Hopper, 7 envs, 150 steps
+    with terminations, forced resets and the fused auto-reset): every output bit for bit the same. A bad
+    $METAPG_PHYSICS_THREADS (what --physics-threads sets) is refused in one line; a good one is the default."""
+    from envs.host_call import THREADS_VARIABLE, default_threads
+
+    task, n, steps = GYMNASIUM_TASKS["hopper"](), 7, 150
+    hosts = [HostPhysics(task, threads=k) for k in (1, 2, 3)]
+    rng = np.random.default_rng(5)
+    qpos0 = np.asarray(task.init_qpos, np.float64)[None] + rng.uniform(-0.005, 0.005, (n, task.mj_model.nq))
+    outs = [h.reset(qpos0, np.zeros((n, task.mj_model.nv))) for h in hosts]
+    for r in outs[1:]:
+        np.testing.assert_array_equal(r[0], outs[0][0])
+    rows = [r[0] for r in outs]
+    ended = 0
+    for t in range(steps):
+        a = rng.uniform(-1, 1, (n, task.action_size))
+        reset_q = np.asarray(task.init_qpos, np.float64)[None] + rng.uniform(-0.005, 0.005, (n, task.mj_model.nq))
+        reset_v = rng.uniform(-0.005, 0.005, (n, task.mj_model.nv))
+        force = rng.uniform(size=n) < 0.02
+        res = [h.step(r, a, reset_q, reset_v, force) for h, r in zip(hosts, rows)]
+        for r in res[1:]:
+            for k in ("rows", "obs", "next_obs", "reward", "terminated"):
+                np.testing.assert_array_equal(r[k], res[0][k], err_msg=f"{k} at step {t}")
+        ended += int((res[0]["terminated"] | force).sum())
+        rows = [r["rows"] for r in res]
+    assert ended > 0
+    monkeypatch.setenv(THREADS_VARIABLE, "3")
+    assert default_threads() == 3 and HostPhysics(task).threads == 3
+    monkeypatch.setenv(THREADS_VARIABLE, "-2")
+    with pytest.raises(ValueError, match="METAPG_PHYSICS_THREADS=must be a whole number >= 1, got '-2'"):
+        HostPhysics(task)
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -255,8 +289,9 @@ TINY_IP = [*tiny_argv("ddpg", env="inverted_pendulum"), "--physics=mujoco", "--c
 
 @pytest.mark.slow
 def test_c_engine_run_resumes_bit_for_bit_after_sigkill(tmp_path):
-    full = sigkill_resume_and_compare(tmp_path, TINY_IP + ["--steps=1800"], chunks=6,
-                                      resume_args=["--compile-cache=off"])
+    # Two physics threads, resumed on one: the thread count is not part of the run and changes no number.
+    full = sigkill_resume_and_compare(tmp_path, TINY_IP + ["--steps=1800", "--physics-threads=2"], chunks=6,
+                                      resume_args=["--compile-cache=off", "--physics-threads=1"])
     summary = json.load(open(os.path.join(full, "summary.json")))
     assert summary["physics"] == "mujoco"
 

@@ -36,6 +36,7 @@ def add_grid_options(p: argparse.ArgumentParser, *, seeds: int, seed: int, steps
                    help="each cell's minimum minutes between checkpoints (experiments.run; default 5)")
     training_args.add_stop_options(p, "; passed to each cell's experiments.run; a grid stopped by SIGTERM exits 143 "
                                       "without building its report, and the same command resumes the cell")
+    training_args.add_physics_threads_option(p)
     p.add_argument("--launcher", default="local", choices=("local", "ray"),
                    help="local (default): the cells one after another in this process; ray: each cell a Ray task "
                         "(the ray extra), on a local Ray instance started here, or on --ray-address")
@@ -58,6 +59,7 @@ def check_grid_options(a: argparse.Namespace, trains: bool) -> None:
     if a.ray_cpus_per_cell < 0 or a.ray_gpus_per_cell < 0 or a.ray_retries < 0:
         raise ValueError("--ray-cpus-per-cell, --ray-gpus-per-cell and --ray-retries must be >= 0")
     training_args.check_stop_options(a.checkpoint_every, a.checkpoint_minutes, a.term_grace)
+    training_args.apply_physics_threads(a.physics_threads)
     if trains and a.launcher == "ray":
         try:
             import ray  # noqa: F401

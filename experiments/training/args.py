@@ -124,6 +124,24 @@ def check_stop_options(checkpoint_every: int, checkpoint_minutes: float, term_gr
     check_term_grace(term_grace)
 
 
+def add_physics_threads_option(p: argparse.ArgumentParser) -> None:
+    """Adds ``--physics-threads`` (MuJoCo's C engine: the threads that step a batch's envs)."""
+    p.add_argument("--physics-threads", default=None, metavar="N",
+                   help="MuJoCo's C engine (--physics=mujoco, gym: tasks): threads that step the envs of a batch at "
+                        "once (default: $METAPG_PHYSICS_THREADS, else the CPUs this process may use). Changes no "
+                        "number, only the speed; not stored with the run (docs/performance.md#physics-threads)")
+
+
+def apply_physics_threads(value: str | None) -> None:
+    """Checks ``--physics-threads`` (one-line ``ValueError``) and makes it the thread count of every C-engine env
+    this process builds (``envs.host_call.THREADS_VARIABLE``); None leaves the default."""
+    if value is None:
+        return
+    from envs.host_call import THREADS_VARIABLE, resolve_threads
+
+    os.environ[THREADS_VARIABLE] = str(resolve_threads(value, "--physics-threads "))
+
+
 def check_counts(seeds: int, seed: int, steps: int | None) -> None:
     """One-line ``ValueError`` for a non-positive seed count or budget, or a base seed outside [0, 2**32)."""
     if seeds <= 0:

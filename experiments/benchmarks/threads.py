@@ -1,0 +1,163 @@
+"""MuJoCo's C engine on one thread and on several (``python -m experiments.bench --threads``): env stepping
+alone inside the program against MuJoCo's own loops outside JAX, and whole training, at each thread count;
+and their tables.
+
+The thread count changes no number (each env steps on its own; tests/test_physics.py and
+tests/test_gym_tasks.py check it bit for bit), only the speed, so the rows here are the whole case for
+``--physics-threads`` and for its default.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import time
+
+from experiments.benchmarks.timing import _timed
+
+# The training rows: 10-seed TD3 with Gaussian noise (what the benchmark grids run) under the paper preset.
+TRAINING = {"method": "ddpg", "student": "td3", "overrides": {"noise.kind": "normal"}, "preset": "paper",
+            "seeds": 10, "target_steps": 600}
+
+
+def _outside_jax(task: str, num_envs: int, steps: int, threads: int, repeats: int) -> dict:
+    """The task's model stepped outside JAX, ``num_envs`` simulations, random controls, no resets: a plain
+    ``mj_step`` loop on one thread, and ``mujoco.batch.Batch`` (what the callback uses) on 1 and ``threads``
+    threads. Steps/s, medians of ``repeats``. (A ``gym:`` task: its gymnasium env's model and frame skip.)"""
+    import mujoco
+    import numpy as np
+    from mujoco import batch as mj_batch
+
+    import envs
+
+    raw = envs.make_raw(task, physics="mujoco", physics_threads=1)
+    model, fs = raw.mj_model, int(raw.frame_skip)
+    low, high = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+    ctrl = np.random.default_rng(0).uniform(low, high, (steps, num_envs, model.nu))
+
+    def rate(run):
+        times = []
+        for _ in range(repeats):
+            t = time.perf_counter()
+            run()
+            times.append(time.perf_counter() - t)
+        return num_envs * steps / statistics.median(times)
+
+    datas = [mujoco.MjData(model) for _ in range(num_envs)]
+
+    def loop():
+        for d in datas:
+            mujoco.mj_resetData(model, d)
+        for k in range(steps):
+            for d, u in zip(datas, ctrl[k]):
+                d.ctrl[:] = u
+                mujoco.mj_step(model, d, nstep=fs)
+
+    def batch(n_threads):
+        b = mj_batch.Batch(model, num_envs, nthread=min(n_threads, num_envs))
+        b_ctrl = b.bind("ctrl")
+
+        def run():
+            b.reset()
+            for k in range(steps):
+                b_ctrl[:] = ctrl[k]
+                b.step(nstep=fs)
+        return run
+
+    return {"loop_1": rate(loop), "batch_1": rate(batch(1)), f"batch_{threads}": rate(batch(threads))}
+
+
+def _in_program(task: str, num_envs: int, steps: int, threads: int, repeats: int) -> tuple[float, float]:
+    """The task on the C engine inside the program at ``threads`` threads: a jitted scan of ``steps``
+    uniform-random steps of ``num_envs`` vmapped envs with the training wrappers (auto-reset included).
+    (steps/s, median of ``repeats``; compile seconds)."""
+    import jax
+    import jax.numpy as jnp
+
+    import envs
+
+    env = envs.make(task, physics="mujoco", physics_threads=threads)
+
+    def run(state, key):
+        def step(s, k):
+            a = jax.random.uniform(k, (num_envs, env.action_size), jnp.float32, -1.0, 1.0)
+            s = jax.vmap(env.step)(s, a)
+            return s, s.reward
+
+        return jax.lax.scan(step, state, jax.random.split(key, steps))
+
+    t = time.perf_counter()
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
+    fn = jax.jit(run).lower(state, jax.random.PRNGKey(1)).compile()
+    compile_s = time.perf_counter() - t
+    seconds, _ = _timed(fn, (state, jax.random.PRNGKey(1)), repeats)
+    return num_envs * steps / seconds, compile_s
+
+
+def measure_stepping(task: str, num_envs: int, threads: int, steps: int = 500, repeats: int = 3) -> dict:
+    """One row of env stepping alone: in the program at 1 and ``threads`` threads, and outside JAX."""
+    one, _ = _in_program(task, num_envs, steps, 1, repeats)
+    many, _ = _in_program(task, num_envs, steps, threads, repeats)
+    out = {"task": task, "num_envs": num_envs, "threads": threads, "steps": steps,
+           "program_1": one, f"program_{threads}": many, **_outside_jax(task, num_envs, steps, threads, repeats)}
+    out["threads_gain_in_program"] = many / one
+    out["threads_gain_outside"] = out[f"batch_{threads}"] / out["batch_1"]
+    out["program_over_loop"] = many / out["loop_1"]
+    out["program_over_threaded_batch"] = many / out[f"batch_{threads}"]
+    return out
+
+
+def measure_training(task: str, threads: int, repeats: int = 3) -> dict:
+    """Whole training (``TRAINING``) on the C engine at ``threads`` threads: ``experiments.bench --one`` in a
+    subprocess of its own with ``$METAPG_PHYSICS_THREADS`` set."""
+    from envs.host_call import THREADS_VARIABLE
+
+    spec = {"env": task, **TRAINING, "repeats": repeats, "physics": "mujoco"}
+    env = {**os.environ, THREADS_VARIABLE: str(threads)}
+    res = subprocess.run([sys.executable, "-m", "experiments.bench", "--one", json.dumps(spec)], capture_output=True,
+                         text=True, env=env)
+    line = [ln for ln in res.stdout.splitlines() if ln.startswith("BENCH_RESULT ")]
+    if res.returncode != 0 or not line:
+        raise RuntimeError(f"{task} at {threads} thread(s) failed: {res.stderr[-2000:]}")
+    r = json.loads(line[0][len("BENCH_RESULT "):])
+    return {"task": task, "threads": threads, "steps_per_s": r["steps_per_s_total"],
+            "env_alone_steps_per_s": r["env_alone_steps_per_s"], "compile_s": r["compile_s"]}
+
+
+def threads_markdown(stepping: list[dict], training: list[dict], meta: dict) -> str:
+    n = meta["threads"]
+    commit = f" at {meta['commit'][:7]}{' (with changes)' if meta.get('dirty') else ''}" if "commit" in meta else ""
+    lines = [
+        f"`python -m experiments.bench --threads` on {meta['date']}{commit} ({meta['machine']}; jax {meta['jax']}; "
+        f"medians of {meta['repeats']} timed repeats; {meta['conditions']}; raw numbers: "
+        f"`{os.path.basename(meta['json'])}`), one process. Env stepping alone: each task's envs vmapped in a "
+        f"jitted scan of uniform-random steps with the training wrappers (auto-reset included) on MuJoCo's C "
+        f"engine inside the program, at 1 thread and at {n}; then outside JAX on the same model: a plain "
+        f"`mj_step` loop over one `MjData` per env (one thread) and `mujoco.batch.Batch` at 1 and {n} threads "
+        f"(random controls, no resets). Target: the program at {n} threads within 1.2x of the threaded batch "
+        f"outside JAX.", "",
+        f"| task | envs | program, 1 thread | program, {n} threads | gain in the program | `mj_step` loop, 1 thread "
+        f"| batch, 1 thread | batch, {n} threads | gain outside JAX | program / loop | program / threaded batch |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in stepping:
+        lines.append(
+            f"| {r['task']} | {r['num_envs']} | {r['program_1']:,.0f} | {r[f'program_{n}']:,.0f} | "
+            f"{r['threads_gain_in_program']:.2f}x | {r['loop_1']:,.0f} | {r['batch_1']:,.0f} | {r[f'batch_{n}']:,.0f} | "
+            f"{r['threads_gain_outside']:.2f}x | {r['program_over_loop']:.2f}x | "
+            f"{1 / r['program_over_threaded_batch']:.2f}x slower |")
+    if training:
+        lines += ["", f"Training: {TRAINING['seeds']}-seed TD3 with Gaussian noise, {TRAINING['preset']} preset, on "
+                      f"the C engine (`experiments.bench --one`, a process per row, cold compile), whole cycles, env "
+                      f"steps/s of all seeds together.", "",
+                  f"| task | 1 thread | {n} threads | gain |", "|---|---|---|---|"]
+        by = {(r["task"], r["threads"]): r for r in training}
+        for task in dict.fromkeys(r["task"] for r in training):
+            a, b = by.get((task, 1)), by.get((task, n))
+            if a and b:
+                lines.append(f"| {task} | {a['steps_per_s']:,.0f} | {b['steps_per_s']:,.0f} | "
+                             f"{b['steps_per_s'] / a['steps_per_s']:.2f}x |")
+    return "\n".join(lines)
