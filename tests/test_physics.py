@@ -248,8 +248,9 @@ def test_threads_step_the_batch_to_the_numbers_of_one_thread(monkeypatch):
         a = rng.uniform(-1, 1, (n, task.action_size))
         reset_q = np.asarray(task.init_qpos, np.float64)[None] + rng.uniform(-0.005, 0.005, (n, task.mj_model.nq))
         reset_v = rng.uniform(-0.005, 0.005, (n, task.mj_model.nv))
+        tries = np.concatenate([reset_q, reset_v], axis=-1)[:, None]  # one reset candidate per env
         force = rng.uniform(size=n) < 0.02
-        res = [h.step(r, a, reset_q, reset_v, force) for h, r in zip(hosts, rows)]
+        res = [h.step(r, a, tries, force) for h, r in zip(hosts, rows)]
         for r in res[1:]:
             for k in ("rows", "obs", "next_obs", "reward", "terminated"):
                 np.testing.assert_array_equal(r[k], res[0][k], err_msg=f"{k} at step {t}")
