@@ -39,8 +39,7 @@ import sys
 import time
 
 import envs
-from experiments.training import args as training_args
-from experiments.training import memory
+from experiments.training import args as training_args, memory
 from metapg_jax.config import current_name
 from metapg_jax.host import compile_cache, runner
 
