@@ -31,9 +31,10 @@ one extra ``mj_step`` per env step, plus gymnasium's Python step per env. The ro
 bit as uint32 words in the JAX state, so checkpoints, bit-for-bit resume and the rest work as for the built-in
 tasks.
 
-Threads: with ``physics_threads`` above 1 the host holds one gymnasium instance per thread and each thread steps
-a contiguous slice of the batch (``mj_step`` releases the GIL; gymnasium's Python around it does not, so the
-gain is the physics' share of a step). Each env is rebuilt from its own row, so which instance steps it changes
+Threads: one by default (``--physics-threads`` or ``$METAPG_PHYSICS_THREADS`` set another count). With more, the
+host holds one gymnasium instance per thread and each thread steps a contiguous slice of the batch (``mj_step``
+releases the GIL, gymnasium's Python around it does not: measured, two threads slowed ``gym:Walker2d-v5`` down,
+docs/performance.md#physics-threads). Each env is rebuilt from its own row, so which instance steps it changes
 nothing: the numbers are one thread's bit for bit (tests/test_gym_tasks.py).
 
 Observations and rewards reach the program as float32 casts of gymnasium's float64 numbers; the reward
@@ -60,6 +61,7 @@ tasks are, in ``envs/gym_mujoco.py``).
 from __future__ import annotations
 
 import numbers
+import os
 import threading
 from typing import Any
 
@@ -69,7 +71,7 @@ import mujoco
 import numpy as np
 
 from envs.gym_names import make_gymnasium_env, parse_name
-from envs.host_call import resolve_threads
+from envs.host_call import THREADS_VARIABLE, resolve_threads
 from envs.mujoco_c import STATE_SPEC, HostCallEnv, pack_step
 
 __all__ = ["GymnasiumCEnv", "GymnasiumHost"]
@@ -141,7 +143,9 @@ class GymnasiumHost:
     def __init__(self, name: str, threads: int | None = None, **overrides):
         from gymnasium import spaces
 
-        self.threads = resolve_threads(threads)
+        # One thread unless asked: measured, threads slow a gym: task down (gymnasium's Python holds the GIL
+        # around each mj_step; docs/performance.md#physics-threads).
+        self.threads = resolve_threads(1 if threads is None and not os.environ.get(THREADS_VARIABLE) else threads)
         self._name, self._overrides = name, overrides
         first = _Replayer(name, overrides)
         self._replayers = [first]   # more, one per thread, on the first call that uses them

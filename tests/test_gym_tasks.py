@@ -127,13 +127,18 @@ def test_the_compiled_program_gives_gymnasiums_episodes_across_auto_resets(task)
     assert ends >= 2 * len(SCALES)
 
 
-def test_threads_step_gymnasiums_envs_to_the_numbers_of_one_thread():
+def test_threads_step_gymnasiums_envs_to_the_numbers_of_one_thread(monkeypatch):
     """The host on 1 and 3 threads (three gymnasium instances, each stepping a slice of the batch) from the same
     rows, actions and reset seeds (Walker2d, 5 envs, 80 steps through terminations and forced resets): every
-    output bit for bit the same; the integration state too."""
+    output bit for bit the same; the integration state too. One thread unless asked (threads slow it down)."""
     from envs.gym_generic import GymnasiumHost
+    from envs.host_call import THREADS_VARIABLE
 
     name, n = "gym:Walker2d-v5", 5
+    monkeypatch.delenv(THREADS_VARIABLE, raising=False)
+    assert GymnasiumHost(name).threads == 1
+    monkeypatch.setenv(THREADS_VARIABLE, "2")
+    assert GymnasiumHost(name).threads == 2
     one, three = GymnasiumHost(name, threads=1), GymnasiumHost(name, threads=3)
     seeds = np.array([3, 1, 4, 1, 5], dtype=object)
     (rows1, obs1), (rows3, obs3) = one.reset(seeds), three.reset(seeds)

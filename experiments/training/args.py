@@ -128,8 +128,9 @@ def add_physics_threads_option(p: argparse.ArgumentParser) -> None:
     """Adds ``--physics-threads`` (MuJoCo's C engine: the threads that step a batch's envs)."""
     p.add_argument("--physics-threads", default=None, metavar="N",
                    help="MuJoCo's C engine (--physics=mujoco, gym: tasks): threads that step the envs of a batch at "
-                        "once (default: $METAPG_PHYSICS_THREADS, else the CPUs this process may use). Changes no "
-                        "number, only the speed; not stored with the run (docs/performance.md#physics-threads)")
+                        "once (default: $METAPG_PHYSICS_THREADS, else the CPUs this process may use; one for a gym: "
+                        "task). Changes no number, only the speed; not stored with the run "
+                        "(docs/performance.md#physics-threads)")
 
 
 def apply_physics_threads(value: str | None) -> None:
