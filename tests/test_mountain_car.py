@@ -219,7 +219,7 @@ def test_pushing_with_the_velocity_reaches_the_goal_and_standing_still_does_not(
 
 @pytest.mark.parametrize("argv, message", [
     (["--env=mountain_car"], "valid tasks: pendulum, inverted_pendulum, inverted_double_pendulum, hopper, "
-                             "halfcheetah, reacher, mountain_car_continuous, or gym:<Id>"),
+                             "halfcheetah, reacher, mountain_car_continuous, gym:<Id>"),
     ([f"--env={TASK}", "--physics=mujoco"], f"{TASK} is a JAX task without MuJoCo physics"),
     ([f"--env={TASK}", "--source=brax"], f"{TASK} has only the gymnasium source"),
 ])
