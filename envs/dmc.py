@@ -1,6 +1,7 @@
 """DeepMind Control suite tasks (``dmc:<domain>-<task>``) on MuJoCo's C engine and on MJX: the shared machinery
 (dm_control's models, its reward sigmoids, ``DmcTask``). The tasks are in modules per group of domains:
-``envs/dmc_classic.py`` (cartpole, pendulum, ball_in_cup, reacher, point_mass, acrobot).
+``envs/dmc_classic.py`` (cartpole, pendulum, ball_in_cup, reacher, point_mass, acrobot), ``envs/dmc_finger.py``
+(finger) and ``envs/dmc_locomotion.py`` (hopper, walker, cheetah).
 
 Reference: the installed ``dm_control`` package (``dm_control/suite/<domain>.py``, ``utils/rewards.py``,
 ``rl/control.py``, ``mujoco/engine.py``). The models are dm_control's own XML files and their shared assets
@@ -17,11 +18,16 @@ reset distribution) is written here once, array-generically (``xp`` is numpy on 
 * **derived fields after a step**: dm_control's ``Physics.step`` ends with ``mj_step1``, so positions, rotation
   matrices and position/velocity sensors belong to the *new* state (a plain ``mj_step`` leaves them one substep
   behind). The C engine asks ``mujoco.batch.Batch.step`` for ``mjSTAGE_VEL`` at the new state (``step_stage``),
-  MJX runs ``mjx.kinematics`` after the last substep (the fields these tasks read are kinematic);
+  MJX runs ``mjx.kinematics`` after the last substep, or, for tasks that read sensors (``reads_sensors``),
+  ``mj_step1``'s position and velocity stages with their sensors (``_step1``). Acceleration-stage sensors
+  (touch) are not recomputed by ``mj_step1``: they keep the values of the last substep's ``mj_step2``, i.e. of
+  the state before the last substep, on both engines as in dm_control;
 * **reset**: dm_control's ``initialize_episode`` distribution drawn with JAX's PRNG in float32 (the same
   distribution, not the same draws). Model entries a reset draws (Reacher's target position) are per-env model
   parameters (``model_params``) carried with the physics state. Ball-in-cup's "redraw while penetrating" loop
   keeps the first of ``reset_tries`` draws without contacts (``HostPhysics`` / ``_first_free`` below).
+  Cheetah's reset lets its draw settle for 200 physics steps (``settle_steps``; ``settle`` below, and
+  ``_settle`` on MJX), the first of them from the derived fields of ``qpos0`` as dm_control's ``mj_step2`` does.
 """
 
 from __future__ import annotations
@@ -38,8 +44,11 @@ import numpy as np
 from brax.envs.base import State
 from flax import struct
 from mujoco import mjx
+from mujoco.mjx._src import forward as mjx_forward
+from mujoco.mjx._src import sensor as mjx_sensor
+from mujoco.mjx._src import smooth as mjx_smooth
 
-from envs.mujoco_base import GymMujocoEnv, _linesearch_loop
+from envs.mujoco_base import _SETTOTALMASS, GymMujocoEnv, _linesearch_loop
 
 __all__ = ["DmcTask", "MjxState", "load_model", "tolerance"]
 
@@ -63,9 +72,17 @@ def _model_files(domain: str) -> tuple[str, tuple[tuple[str, bytes], ...]]:
 
 def load_model(domain: str) -> mujoco.MjModel:
     """dm_control's model of ``domain`` (``suite.<domain>.get_model_and_assets()``: the domain's XML and the
-    suite's common assets, read from the installed package without importing its Python)."""
+    suite's common assets, read from the installed package without importing its Python). Cheetah's
+    ``settotalmass`` is applied as ``envs.mujoco_base.load_model`` does (the same arrays, without MuJoCo's
+    deprecation warning)."""
     xml, assets = _model_files(domain)
-    return mujoco.MjModel.from_xml_string(xml, dict(assets))
+    found = _SETTOTALMASS.search(xml)
+    if found is None:
+        return mujoco.MjModel.from_xml_string(xml, dict(assets))
+    model = mujoco.MjModel.from_xml_string(_SETTOTALMASS.sub("", xml, count=1), dict(assets))
+    mujoco.mj_setTotalmass(model, float(found.group(1)))
+    mujoco.mj_setConst(model, mujoco.MjData(model))
+    return model
 
 
 def _power2(xp, x, scalar: bool):
@@ -126,12 +143,16 @@ class DmcTask(GymMujocoEnv):
 
     Subclasses set ``domain`` (dm_control's model), implement ``_obs_size``, ``_get_obs``, ``_reward`` and
     ``sample_reset``, and may set ``control_timestep`` (default: one physics step per control step, as
-    dm_control's ``control.Environment``), ``derived_fields``, ``model_params`` and ``reset_tries``.
+    dm_control's ``control.Environment``), ``derived_fields``, ``model_params``, ``reset_tries``,
+    ``settle_steps`` and ``reads_sensors``.
     """
 
     domain = ""
     control_timestep: float | None = None
     step_stage = int(mujoco.mjtStage.mjSTAGE_VEL)
+    # Whether the observation or reward reads ``sensordata`` (MJX then recomputes the position- and
+    # velocity-stage sensors at the new state after a step, as mj_step1 does).
+    reads_sensors = False
 
     def __init__(self, early_exit_linesearch: bool = True):
         model = self._configure(load_model(self.domain))
@@ -173,6 +194,24 @@ class DmcTask(GymMujocoEnv):
         qvel = self.init_qvel if qvel is None else qvel
         return jnp.concatenate([qpos, qvel, jnp.asarray(params, jnp.float32).reshape(-1)])
 
+    def settle(self, rows: np.ndarray) -> np.ndarray:
+        """The C engine's settling of reset draws (``settle_steps``): float64 integration state rows (n, nstate)
+        at their draws -> the rows after dm_control's ``physics.step(settle_steps)`` with zero controls, time 0.
+        As in dm_control's reset: the first substep's ``mj_step2`` runs on the derived fields of its reset's
+        ``mj_forward`` at qpos0 and integrates from the draw; then ``mj_step`` x (n - 1) and ``mj_step1``."""
+        m, d = self.mj_model, mujoco.MjData(self.mj_model)
+        spec, out = mujoco.mjtState.mjSTATE_INTEGRATION, np.empty_like(rows)
+        for i, row in enumerate(rows):
+            mujoco.mj_resetData(m, d)
+            mujoco.mj_forward(m, d)
+            mujoco.mj_setState(m, d, row, spec)
+            mujoco.mj_step2(m, d)
+            mujoco.mj_step(m, d, self.settle_steps - 1)
+            mujoco.mj_step1(m, d)
+            d.time = 0.0
+            mujoco.mj_getState(m, d, out[i], spec)
+        return out
+
     def _reward_done(self, xp, data0, data, ctrl, obs):
         reward = self._reward(xp, data, ctrl)
         return reward, xp.zeros(reward.shape, bool), {}
@@ -199,12 +238,28 @@ class DmcTask(GymMujocoEnv):
             m = m.replace(**{field: value.reshape(-1).at[index].set(params[j]).reshape(value.shape)})
         return m
 
-    def _place(self, row: jax.Array):
+    def _place(self, row: jax.Array, settle=True):
         nq, nv = self.mj_model.nq, self.mj_model.nv
-        params = row[nq + nv:]
+        params, model = row[nq + nv:], self._model(row[nq + nv:])
         data = self._data0.replace(qpos=row[:nq], qvel=row[nq:nq + nv])
-        data = mjx.forward(self._model(params), data)
-        return data, params
+        if self.settle_steps:
+            data = self._settle(model, data, settle)
+        return mjx.forward(model, data), params
+
+    @functools.cached_property
+    def _forward0(self) -> mjx.Data:
+        """``mjx.forward`` at qpos0, at rest: the derived fields dm_control's first settling substep reads."""
+        with jax.ensure_compile_time_eval():
+            return jax.jit(mjx.forward)(self.mjx_model, self._data0)
+
+    def _settle(self, model, data, settle):
+        """MJX's ``settle``: one Euler step from ``_forward0``'s derived fields with the drawn qpos/qvel, then
+        ``settle_steps - 1`` ``mjx.step``s, time 0. Where ``settle`` is False (the auto-reset's draws that are not
+        used, ``step_with_reset``) the loop runs no step: under vmap it runs as long as the longest env needs."""
+        d = mjx_forward.euler(model, self._forward0.replace(qpos=data.qpos, qvel=data.qvel))
+        n = jnp.where(settle, self.settle_steps - 1, 0)
+        d = jax.lax.while_loop(lambda c: c[0] < n, lambda c: (c[0] + 1, mjx.step(model, c[1])), (0, d))[1]
+        return d.replace(time=jnp.zeros_like(d.time))
 
     def _first_free(self, tries: jax.Array):
         """The first candidate whose ``mjx.forward`` finds no contact (the last if none), as ``HostPhysics``."""
@@ -221,13 +276,29 @@ class DmcTask(GymMujocoEnv):
 
         return jax.lax.while_loop(cond, body, (jnp.ones((), jnp.int32), *self._place(tries[0])))[1:]
 
-    def reset(self, rng: jax.Array) -> State:
+    def reset(self, rng: jax.Array, settle=True) -> State:
         tries = self.sample_reset(rng)
         with _linesearch_loop(self.early_exit_linesearch):
-            data, params = self._place(tries[0]) if self.reset_tries == 1 else self._first_free(tries)
+            if self.reset_tries == 1:
+                data, params = self._place(tries[0], settle)
+            else:
+                data, params = self._first_free(tries)
         zero = jnp.zeros((), jnp.float32)
         return State(pipeline_state=MjxState(data, params), obs=self._get_obs(jnp, data), reward=zero,
                      done=zero, metrics={}, info={})
+
+    @property
+    def fused_autoreset(self) -> bool:
+        """Whether the auto-reset calls ``step_with_reset``: for tasks that settle their resets (MJX's vmapped
+        auto-reset computes a reset at every step and keeps it where an episode ended)."""
+        return self.settle_steps > 0
+
+    def step_with_reset(self, state: State, action: jax.Array, reset_rng: jax.Array,
+                        force_reset: jax.Array) -> tuple[State, State]:
+        """The step and a fresh episode (``envs.mujoco_c.HostCallEnv.step_with_reset``'s contract), settled only
+        where the episode ends (``force_reset``: these tasks end at the time limit only), so that a settling reset
+        costs its physics steps once per episode."""
+        return self.step(state, action), self.reset(reset_rng, settle=force_reset)
 
     def state_from_qpos_qvel(self, qpos, qvel, params=()) -> State:
         """The state at qpos/qvel (and model params), as dm_control's reset leaves it (MJX, float32)."""
@@ -237,13 +308,23 @@ class DmcTask(GymMujocoEnv):
         return State(pipeline_state=MjxState(data, params), obs=self._get_obs(jnp, data), reward=zero,
                      done=zero, metrics={}, info={})
 
+    def _step1(self, model: mjx.Model, data: mjx.Data) -> mjx.Data:
+        """dm_control's closing ``mj_step1`` (the new state's positions and frames; with ``reads_sensors`` also
+        the centre-of-mass quantities and the position- and velocity-stage sensors; acceleration-stage sensors
+        keep the last substep's values, as in dm_control)."""
+        if not self.reads_sensors:
+            return mjx.kinematics(model, data)
+        data = mjx_smooth.com_pos(model, mjx_smooth.kinematics(model, data))
+        data = mjx_smooth.com_vel(model, mjx_sensor.sensor_pos(model, data))
+        return mjx_sensor.sensor_vel(model, data)
+
     def step(self, state: State, action: jax.Array) -> State:
         ctrl = self.scale_action(jnp.clip(jnp.asarray(action, jnp.float32), -1.0, 1.0))
         ps = state.pipeline_state
         model = self._model(ps.params)
         with _linesearch_loop(self.early_exit_linesearch):
             data = jax.lax.fori_loop(0, self.frame_skip, lambda _, d: mjx.step(model, d), ps.data.replace(ctrl=ctrl))
-        data = mjx.kinematics(model, data)  # dm_control's mj_step1: the new state's positions and frames
+        data = self._step1(model, data)
         obs = self._get_obs(jnp, data)
         reward = self._reward(jnp, data, ctrl)
         return state.replace(pipeline_state=ps.replace(data=data), obs=obs, reward=jnp.asarray(reward, jnp.float32),

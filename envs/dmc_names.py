@@ -26,10 +26,19 @@ TASKS: dict[str, tuple[str, dict]] = {
     "point_mass-easy": ("envs.dmc_classic:PointMass", {}),
     "acrobot-swingup": ("envs.dmc_classic:Acrobot", {"sparse": False}),
     "acrobot-swingup_sparse": ("envs.dmc_classic:Acrobot", {"sparse": True}),
+    "finger-spin": ("envs.dmc_finger:Finger", {"turn": False}),
+    "finger-turn_easy": ("envs.dmc_finger:Finger", {"turn": True, "target_radius": 0.07}),
+    "finger-turn_hard": ("envs.dmc_finger:Finger", {"turn": True, "target_radius": 0.03}),
+    "hopper-stand": ("envs.dmc_locomotion:Hopper", {"hopping": False}),
+    "hopper-hop": ("envs.dmc_locomotion:Hopper", {"hopping": True}),
+    "walker-stand": ("envs.dmc_locomotion:Walker", {"move_speed": 0.0}),
+    "walker-walk": ("envs.dmc_locomotion:Walker", {"move_speed": 1.0}),
+    "walker-run": ("envs.dmc_locomotion:Walker", {"move_speed": 8.0}),
+    "cheetah-run": ("envs.dmc_locomotion:Cheetah", {}),
 }
 
-# Every task of this batch ends at dm_control's time limit only (its tasks' ``get_termination`` is None): 1,000
-# control steps (10 s of cartpole and acrobot, 20 s of the others).
+# Every task here ends at dm_control's time limit only (its tasks' ``get_termination`` is None): 1,000 control
+# steps (10 s of cartpole, acrobot and cheetah, 25 s of walker, 20 s of the others).
 EPISODE_LENGTH = 1000
 # No paper budget exists for these tasks: 500k env steps per seed (500 episodes). The evaluation interval is a
 # multiple of every built-in explorer's cycle (100, 300 and 3,000 steps: envs.TaskSpec), so 9k, the multiple of

@@ -185,6 +185,9 @@ class GymMujocoEnv(Env):
     # without contacts (1: the one drawn). Both for the DeepMind Control tasks (envs/dmc.py).
     model_params: Tuple[Tuple[str, int], ...] = ()
     reset_tries: int = 1
+    # Physics steps with zero controls that a reset runs from its draw (DeepMind Control's cheetah: 200;
+    # ``envs.dmc.DmcTask.settle``); 0: none.
+    settle_steps: int = 0
 
     def __init__(self, xml_file, frame_skip: int, early_exit_linesearch: bool = True):
         # See the module docstring ("Speed"); False gives MJX's stock line search.

@@ -91,8 +91,7 @@ class HostPhysics:
     (``task.model_params``: none for gymnasium's tasks; e.g. the target of DeepMind Control's Reacher),
     which are written into the batch's per-simulation copy of those model fields before every call.
     A reset gets ``task.reset_tries`` candidates per env and keeps the first without contacts after
-    ``mj_forward`` (the last one if all have some); with one candidate, that one.
-    """
+    ``mj_forward`` (the last one if all have some; one: that one), then settles it (``task.settle_steps``)."""
 
     def __init__(self, task, threads: int | None = None):
         self.task = task
@@ -230,9 +229,9 @@ class _Scratch:
 
     def reset(self, ids, tries) -> None:
         """gymnasium's reset of simulations ``ids`` (None: all) to ``tries`` (len(ids), tries, nq + nv + nparam):
-        mj_resetData (the reset row written into the state rows), set qpos/qvel and the model params,
-        mj_forward; of several tries, the first without contacts. ``mj_forward`` changes no state, so it runs only
-        for tasks that read derived fields or reject (a batch call costs ~50-100 us; resets are frequent)."""
+        mj_resetData (the reset row written into the state rows), set qpos/qvel and the model params, mj_forward
+        (only for tasks that read derived fields or reject: it changes no state, and a batch call costs ~50-100
+        us); of several tries, the first without contacts; then the task's settling steps, if any."""
         rows, nq, nv = self.batch.state, self.nq, self.nv
         ids = np.arange(len(rows)) if ids is None else ids
         pick = np.arange(len(ids))  # rows of ``tries`` still to place, and their simulations
@@ -249,6 +248,9 @@ class _Scratch:
             pick = pick[self.ncon[sims] > 0]
             if not len(pick):
                 break
+        if self.task.settle_steps:  # DeepMind Control's cheetah: its draw settles (DmcTask.settle), mj_forward
+            rows[ids] = self.task.settle(rows[ids])
+            self.batch.forward(ids)
 
     def step(self, action, reset_tries=None, force_reset=None) -> dict:
         """The step of every simulation from the state rows as they are (see ``HostPhysics.step``)."""
