@@ -31,19 +31,27 @@ def _flat(observation) -> np.ndarray:
 
 
 def _dm_start(name, seed):
-    """dm_control's env of ``name`` after its reset, and the state to start ours from: qpos, qvel, model params."""
+    """dm_control's env of ``name`` after its reset, and the state to start ours from: qpos, qvel, model params.
+    For a task that settles its reset (cheetah) that is the draw, which our reset settles: dm_control's reset
+    draws it first from ``RandomState(seed)``."""
     domain, task = dmc_names.parse_name(f"dmc:{name}")
     env = suite.load(domain, task, task_kwargs={"random": seed})
     ts = env.reset()
     raw = envs.make_raw(f"dmc:{name}", physics="mujoco")
     model = env.physics.model
     params = [np.asarray(getattr(model, field)).reshape(-1)[index] for field, index in raw.task.model_params]
-    return env, ts, (env.physics.data.qpos.copy(), env.physics.data.qvel.copy(), np.array(params))
+    qpos, qvel = env.physics.data.qpos.copy(), env.physics.data.qvel.copy()
+    if raw.task.settle_steps:
+        limited = model.jnt_limited == 1
+        qpos, qvel = model.qpos0.copy(), np.zeros_like(qvel)
+        qpos[limited] = np.random.RandomState(seed).uniform(*model.jnt_range[limited].T)
+    return env, ts, (qpos, qvel, np.array(params))
 
 
-# Every task of the batch (each costs a C-engine compile and 1,000 dm_control steps: 1-3 s); three of them, one per
-# kind of reset (plain, rejection, a model parameter), in the fast tier.
-FAST = ("cartpole-swingup_sparse", "ball_in_cup-catch", "reacher-hard")
+# Every task (each costs a C-engine compile and 1,000 dm_control steps: 1-3 s); four of them in the fast tier: one
+# per kind of reset (plain, rejection, a model parameter) and finger-turn_hard (sensors, touch, both rejection and
+# a model parameter).
+FAST = ("cartpole-swingup_sparse", "ball_in_cup-catch", "reacher-hard", "finger-turn_hard")
 
 
 @pytest.mark.parametrize("name", [n if n in FAST else pytest.param(n, marks=pytest.mark.slow)
@@ -149,10 +157,12 @@ def test_sparse_rewards_are_reached():
     assert float(jax.jit(reacher.step)(start, jnp.zeros(2)).reward) == 1.0
 
 
-def test_ball_in_cup_resets_keep_the_first_draw_without_contacts():
-    """dm_control redraws the ball while it touches the cup; we draw 16 candidates and keep the first without
-    contacts. Over 64 resets some first draws touch (~18% do), and every reset is the first free candidate."""
-    raw = envs.make_raw("dmc:ball_in_cup-catch", physics="mujoco")
+@pytest.mark.parametrize("name", ["ball_in_cup-catch", "finger-turn_hard"])
+def test_rejecting_resets_keep_the_first_draw_without_contacts(name):
+    """dm_control redraws ball_in_cup's ball while it touches the cup, and finger's joints while any geoms touch;
+    we draw 16 candidates and keep the first without contacts. Over 64 resets some first draws touch (~18% and
+    ~9% do), and every reset is the first free candidate."""
+    raw = envs.make_raw(f"dmc:{name}", physics="mujoco")
     keys = jax.random.split(jax.random.PRNGKey(0), 64)
     tries = np.asarray(jax.vmap(raw.task.sample_reset)(keys), np.float64)
     rows = np.asarray(jax.jit(jax.vmap(raw.reset))(keys).pipeline_state).view(np.float64)
@@ -209,8 +219,8 @@ def test_spec_and_engines():
 
 
 @pytest.mark.parametrize("name, message", [
-    ("dmc:cheetah-run", "unknown task 'dmc:cheetah-run': no DeepMind Control domain 'cheetah' here; domains: "
-                        "acrobot, ball_in_cup, cartpole"),
+    ("dmc:humanoid-run", "unknown task 'dmc:humanoid-run': no DeepMind Control domain 'humanoid' here; domains: "
+                         "acrobot, ball_in_cup, cartpole, cheetah, finger, hopper"),
     ("dmc:cartpole-run", "unknown task 'dmc:cartpole-run': domain cartpole has the tasks balance, "
                          "balance_sparse, swingup, swingup_sparse"),
     ("dmc:cartpole", "bad task name 'dmc:cartpole': expected dmc:<domain>-<task>"),
@@ -233,7 +243,7 @@ def test_without_dm_control_the_install_command_is_named(monkeypatch):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--env=dmc:cheetah-run"], "error: unknown task 'dmc:cheetah-run'"),
+    (["--env=dmc:humanoid-run"], "error: unknown task 'dmc:humanoid-run'"),
     (["--env=dmc:cartpole-run"], "error: unknown task 'dmc:cartpole-run'"),
     (["--env=dmc:cartpole"], "error: bad task name 'dmc:cartpole'"),
     (["--env=dmc:cartpole-swingup", "--source=brax"], "error: dmc:cartpole-swingup is a DeepMind Control task"),
