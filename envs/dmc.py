@@ -23,9 +23,10 @@ reset distribution) is written here once, array-generically (``xp`` is numpy on 
   (touch) are not recomputed by ``mj_step1``: they keep the values of the last substep's ``mj_step2``, i.e. of
   the state before the last substep, on both engines as in dm_control;
 * **reset**: dm_control's ``initialize_episode`` distribution drawn with JAX's PRNG in float32 (the same
-  distribution, not the same draws). Model entries a reset draws (Reacher's target position) are per-env model
-  parameters (``model_params``) carried with the physics state. Ball-in-cup's "redraw while penetrating" loop
-  keeps the first of ``reset_tries`` draws without contacts (``HostPhysics`` / ``_first_free`` below).
+  distribution, not the same draws). Model entries a reset draws (Reacher's and finger-turn's targets) are
+  per-env model parameters (``model_params``) carried with the physics state. Ball-in-cup's and finger's "redraw
+  while penetrating" loops keep the first of ``reset_tries`` draws without contacts (``HostPhysics`` /
+  ``_first_free`` below).
   Cheetah's reset lets its draw settle for 200 physics steps (``settle_steps``; ``settle`` below, and
   ``_settle`` on MJX), the first of them from the derived fields of ``qpos0`` as dm_control's ``mj_step2`` does.
 """

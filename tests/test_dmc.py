@@ -1,9 +1,10 @@
 """DeepMind Control suite tasks, ``dmc:<domain>-<task>`` (envs/dmc.py, envs/dmc_names.py).
 
 The reference is dm_control's own suite (``suite.load(domain, task)``, MuJoCo's C engine in float64): from the
-same initial state (qpos, qvel and, for Reacher, the target's position) and the same actions, the compiled
-program on the C engine gives dm_control's observations and rewards cast to float32, bit for bit, for a whole
-episode, and ends it where dm_control does (the 1,000-step time limit). MJX agrees within float32 round-off.
+same initial state (qpos, qvel and, for Reacher and finger-turn, the target's position; for cheetah the draw that
+its reset settles) and the same actions, the compiled program on the C engine gives dm_control's observations and
+rewards cast to float32, bit for bit, for a whole episode, and ends it where dm_control does (the 1,000-step time
+limit). MJX agrees within float32 round-off (tests/test_dmc_locomotion.py: the contact-rich domains).
 """
 
 from __future__ import annotations
