@@ -1,4 +1,4 @@
-"""The counterfactual meta reward and the look-ahead's data (metapg_jax/strategies/counterfactual.py): what each
+"""The counterfactual meta reward and the look-ahead's data (metapg_jax/counterfactual.py): what each
 sampler draws from, and the cycle with ``meta.baseline='counterfactual'`` and ``meta.lookahead_data='mix'``."""
 
 import jax
@@ -8,7 +8,7 @@ import pytest
 
 from metapg_jax import replay
 from metapg_jax.config import validate
-from metapg_jax.strategies import counterfactual
+from metapg_jax import counterfactual
 from metapg_jax.train import make_train
 from metapg_jax.types import Transition
 from tests.helpers import tiny_config

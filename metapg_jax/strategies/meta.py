@@ -17,7 +17,7 @@ Per seed, per cycle (../shared/DESIGN.md steps 1-8; defaults in brackets):
    difference is the look-ahead's gain on the same start states, from the
    first cycle on. With ``baseline='counterfactual'`` (ours) R_hat(pi) is
    R_hat(pi''), a second look-ahead copy trained as long without D0, rolled
-   out from the same resets (``metapg_jax/strategies/counterfactual.py``).
+   out from the same resets (``metapg_jax/counterfactual.py``).
 5. Teacher: ``teacher_steps`` [1] Adam steps of REINFORCE (eq. 5) on D0.
 6. Buffer <- D0, D1 (and the normaliser sees their observations).
 7. Student: ``train_steps`` [50] DDPG updates on the buffer, starting from pi
@@ -71,7 +71,7 @@ from metapg_jax import teacher as teacher_lib
 from metapg_jax.config import positive
 from metapg_jax.loop import TrainState, Trainer, flatten_time, train_updates
 from metapg_jax.rollout import completed_episode_mean, rollout
-from metapg_jax.strategies import counterfactual
+from metapg_jax import counterfactual
 from metapg_jax.teacher import Teacher, TeacherState
 
 
@@ -101,7 +101,7 @@ class MetaConfig:
     student_from: str = "pi"        # student update starts from pi (paper) or pi'
     # R_hat(pi): the previous cycle's R_hat(pi') ('lookahead'), a fresh rollout of the updated student ('fresh'),
     # a rollout of this cycle's student from D1's resets ('paired', ours), or of a look-ahead copy trained as long
-    # without D0 ('counterfactual', ours; metapg_jax/strategies/counterfactual.py)
+    # without D0 ('counterfactual', ours; metapg_jax/counterfactual.py)
     baseline: str = "lookahead"
     # The look-ahead's minibatches: from D0 alone ('d0', the paper) or from the replay buffer and D0 ('mix', ours)
     lookahead_data: str = "d0"
