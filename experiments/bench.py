@@ -155,9 +155,13 @@ def main(argv: list[str] | None = None) -> int:
         return _threads(args)
     tasks = args.envs.split(",") if args.envs else (list(envs.TASKS) if args.env_speed else
                                                    ["pendulum", "inverted_double_pendulum"])
-    unknown = [t for t in tasks if t not in envs.TASKS]
-    if unknown:
-        print(f"error: unknown task(s) {', '.join(unknown)}; known: {', '.join(envs.TASKS)}", file=sys.stderr)
+    try:
+        for t in tasks:
+            envs.get_spec(t)  # a built-in task, or gym:/dmc: (one-line error)
+            if envs.is_gym_task(t) and args.env_speed:
+                raise ValueError(f"--env-speed measures the built-in and dmc: tasks; {t} has no model of ours")
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
         return 2
     if args.num_envs <= 0 or args.repeats <= 0:
         print("error: --num-envs and --repeats must be positive", file=sys.stderr)

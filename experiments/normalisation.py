@@ -3,6 +3,8 @@ policy's return, 1 = the reference return. Measured and written once; every aggr
 
     python -m experiments.normalisation                  # measures, writes results/normalisation.json
     python -m experiments.normalisation --episodes 20 --tasks pendulum,hopper --out /tmp/anchors.json
+    python -m experiments.normalisation --tasks dmc:cartpole-swingup_sparse,dmc:reacher-hard \
+        --out results/normalisation-dmc.json           # DeepMind Control tasks: 1 = the suite's maximum
 
 * **0, the random policy**: actions uniform in [-1, 1]^d (the tasks' scaled action space) through the project's
   evaluation (``metapg_jax.evaluate`` with a stochastic policy: episodes from seeded resets, each up to the
@@ -13,6 +15,10 @@ policy's return, 1 = the reference return. Measured and written once; every aggr
   commit. A fixed choice made before any aggregate was computed: no grid built later moves it, and the
   baseline of every comparison scores 1 on Table 2's tasks by construction (as human-normalised Atari scores
   put the human at 1).
+
+  A DeepMind Control task (``dmc:``) has no cell in that grid; its 1 is the suite's own maximum, 1,000 (a reward
+  of at most 1 per step over the 1,000-step episode), as the field normalises DMC returns. Its anchors go to a
+  file of their own (``--out``), so that the Table 2 file keeps the tasks its aggregates were built on.
 """
 
 from __future__ import annotations
@@ -46,6 +52,18 @@ def random_policy_returns(task: str, episodes: int, seed: int = 0):
     return np.asarray(ret, np.float64), np.asarray(length), cfg.env.physics
 
 
+# The reference of a DeepMind Control task: the suite's maximum return per episode (envs/dmc.py: reward in [0, 1]).
+DMC_MAXIMUM = 1000.0
+
+
+def dmc_reference(task: str) -> dict:
+    """The reference of a ``dmc:`` task: the suite's maximum return, ``DMC_MAXIMUM``."""
+    from envs.dmc_names import EPISODE_LENGTH
+
+    return {"reference_return": DMC_MAXIMUM, "reference": f"the suite's maximum: a reward of at most 1 per step "
+                                                          f"over the {EPISODE_LENGTH:,}-step episode"}
+
+
 def reference_returns(path: str = REFERENCE_GRID, method: str = REFERENCE_METHOD) -> dict:
     """Per task, the reference method's mean final return in the grid's JSON twin, with its provenance."""
     with open(path) as f:
@@ -72,6 +90,7 @@ def load(path: str = DEFAULT_OUT) -> dict[str, tuple[float, float]]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    import envs
     from envs import TASKS, paper_tasks
 
     # The default: the built-in tasks the reference grid (the paper's) has.
@@ -85,15 +104,30 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", default=DEFAULT_OUT, help="the anchors file (default results/normalisation.json)")
     args = p.parse_args(argv)
     tasks = [t for t in args.tasks.split(",") if t]
-    unknown = [t for t in tasks if t not in TASKS]
+    unknown = [t for t in tasks if t not in TASKS and not envs.is_dmc_task(t)]
     if unknown or not tasks:
-        print(f"error: unknown task(s) {', '.join(unknown) or '(none given)'}; tasks: {', '.join(TASKS)}",
-              file=sys.stderr)
+        print(f"error: unknown task(s) {', '.join(unknown) or '(none given)'}; tasks: {', '.join(TASKS)}, "
+              f"dmc:<domain>-<task>", file=sys.stderr)
+        return 2
+    try:
+        for t in tasks:
+            envs.get_spec(t)  # a dmc: task's name, and dm_control installed (one line)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    dmc = [t for t in tasks if envs.is_dmc_task(t)]
+    if dmc and len(dmc) < len(tasks):
+        print("error: DeepMind Control tasks have their own reference (the suite's maximum) and file: pass them "
+              "without the Table 2 tasks, with their own --out", file=sys.stderr)
+        return 2
+    if dmc and os.path.abspath(args.out) == os.path.abspath(DEFAULT_OUT):
+        print(f"error: {DEFAULT_OUT} holds Table 2's anchors; write DeepMind Control tasks' to a file of their own "
+              f"(--out results/normalisation-dmc.json)", file=sys.stderr)
         return 2
     if args.episodes < 2:
         print(f"error: --episodes must be at least 2 (a mean and a std), got {args.episodes}", file=sys.stderr)
         return 2
-    references = reference_returns()
+    references = {t: dmc_reference(t) for t in dmc} if dmc else reference_returns()
     missing = [t for t in tasks if t not in references]
     if missing:
         print(f"error: {REFERENCE_GRID} has no finished {REFERENCE_METHOD} cell for {', '.join(missing)}",
@@ -115,8 +149,11 @@ def main(argv: list[str] | None = None) -> int:
         "definition": "normalised score = (return - random_return) / (reference_return - random_return)",
         "random_policy": {"actions": "uniform in [-1, 1]^d, a fresh draw per step", "episodes": args.episodes,
                           "seed": args.seed, "statistics": "mean and sample std (ddof=1) over episodes"},
-        "reference": {"grid": os.path.relpath(REFERENCE_GRID, ROOT), "method": REFERENCE_METHOD,
-                      "statistic": "mean final return over the cell's seeds (experiments.analysis.stats.FINAL_DEFINITION)"},
+        "reference": ({"kind": "the DeepMind Control suite's maximum return per episode", "return": DMC_MAXIMUM}
+                      if dmc else
+                      {"grid": os.path.relpath(REFERENCE_GRID, ROOT), "method": REFERENCE_METHOD,
+                       "statistic": "mean final return over the cell's seeds "
+                                    "(experiments.analysis.stats.FINAL_DEFINITION)"}),
         "measured": {"date": datetime.date.today().isoformat(), **provenance()},
         "tasks": anchors})
     print(f"wrote {args.out}")

@@ -103,7 +103,25 @@ def test_the_random_policys_returns_anchor_zero(tmp_path, capsys):
     assert stored["tasks"]["pendulum"]["reference_run_commit"] and stored["measured"]["commit"]
     low, high = normalisation.load(str(out))["pendulum"]
     assert low == pytest.approx(float(ret.mean())) and high > low
-    for argv, message in ((["--tasks", "walker"], "unknown task(s) walker"), (["--episodes", "1"], "at least 2")):
+    for argv, message in ((["--tasks", "walker"], "unknown task(s) walker"), (["--episodes", "1"], "at least 2"),
+                          (["--tasks", "dmc:cartpole-fly"], "unknown task 'dmc:cartpole-fly'"),
+                          (["--tasks", "pendulum,dmc:cartpole-swingup"], "pass them without the Table 2 tasks")):
         assert normalisation.main([*argv, "--out", str(tmp_path / "x.json")]) == 2
         assert message in capsys.readouterr().err
+    assert normalisation.main(["--tasks", "dmc:cartpole-swingup"]) == 2  # not into Table 2's file
+    assert "holds Table 2's anchors" in capsys.readouterr().err
     assert not (tmp_path / "x.json").exists()
+
+
+def test_a_dmc_tasks_anchors_are_its_random_policy_and_the_suites_maximum(tmp_path):
+    """A DeepMind Control task: 0 = the random policy's return over whole 1,000-step episodes (never ended early),
+    1 = the suite's maximum, 1,000."""
+    pytest.importorskip("dm_control")
+    out = tmp_path / "dmc.json"
+    assert normalisation.main(["--tasks", "dmc:pendulum-swingup", "--episodes", "2", "--out", str(out)]) == 0
+    stored = json.loads(out.read_text())
+    task = stored["tasks"]["dmc:pendulum-swingup"]
+    assert task["reference_return"] == 1000.0 and task["random_episode_length_mean"] == 1000.0
+    assert 0 <= task["random_return"] < 1000 and task["engine"] == "mujoco"
+    assert stored["reference"]["return"] == 1000.0
+    assert normalisation.load(str(out))["dmc:pendulum-swingup"] == (task["random_return"], 1000.0)

@@ -62,6 +62,28 @@ def test_env_speed_markdown_has_both_engines_the_limits_and_the_verdicts():
     assert "on d at 0123456 (m;" in md
 
 
+def test_env_speed_measures_a_dmc_task_on_the_c_engine_against_dm_control():
+    """--env-speed on a DeepMind Control task: the C engine in the program, its loops outside JAX on dm_control's
+    model, and dm_control's own suite as the reference column; a gym: task is refused in one line."""
+    pytest.importorskip("dm_control")
+    r = env_speed.measure_env_speed("dmc:pendulum-swingup", num_envs=2, steps=20, repeats=1, engines=("mujoco",))
+    for k in ("c_steps_per_s", "raw_loop_steps_per_s", "batch_steps_per_s", "gymnasium_steps_per_s"):
+        assert r[k] > 0, k
+    assert "ours_steps_per_s" not in r and r["c_threads"] >= 1
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--env-speed", "--envs", "gym:Walker2d-v5"], "--env-speed measures the built-in and dmc: tasks"),
+    (["--env-speed", "--envs", "dmc:cartpole-fly"], "unknown task 'dmc:cartpole-fly'"),
+])
+def test_bench_refuses_tasks_it_cannot_measure(argv, message, capsys):
+    from experiments import bench
+
+    assert bench.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0], err
+
+
 def test_engines_table_pairs_rows_of_one_date():
     row = lambda physics, sps, date="2026-12-01", **kw: {
         "env": "hopper", "method": "meta", "preset": "paper", "seeds": 8, "measured": date, "physics": physics,
@@ -78,7 +100,7 @@ def test_engines_table_pairs_rows_of_one_date():
 def test_bad_arguments_fail_before_measuring(tmp_path, capsys):
     out = str(tmp_path / "B.md")
     assert bench.main(["--env-speed", "--envs", "pendulum,cartpole", "--out", out]) == 2
-    assert "unknown task(s) cartpole" in capsys.readouterr().err
+    assert "unknown task 'cartpole'" in capsys.readouterr().err
     assert bench.main(["--env-speed", "--envs", "pendulum", "--num-envs", "0", "--out", out]) == 2
     assert "--num-envs and --repeats must be positive" in capsys.readouterr().err
     assert bench.main(["--env-speed", "--envs", "pendulum", "--physics", "mujoco", "--out", out]) == 2

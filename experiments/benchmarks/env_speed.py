@@ -31,9 +31,9 @@ def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int) -
     from mujoco import batch as mj_batch
     from mujoco import rollout as mj_rollout
 
-    from envs.gym_mujoco import GYMNASIUM_TASKS
+    import envs
 
-    task_env = GYMNASIUM_TASKS[task]()
+    task_env = envs.make_raw(task, physics="mujoco", physics_threads=1).task  # the built-in or dmc: task
     model, fs = task_env.mj_model, task_env.frame_skip
     low, high = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
     ctrl = np.random.default_rng(0).uniform(low, high, (steps, num_envs, model.nu))
@@ -113,7 +113,6 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
     With ``stock_mjx``, MJX is timed a second time with its stock line search
     (``early_exit_linesearch=False``) and the two trajectories are checked to be identical
     (see envs/mujoco_base.py, "Speed"). ``engines`` without "mjx": the C engine's columns alone (a MuJoCo task)."""
-    import gymnasium
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -162,18 +161,43 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
                        early_exit_speedup=ours / stock,
                        identical_to_stock=all(np.array_equal(a, b) for a, b in zip(traj, stock_traj)))
 
+    out["gymnasium_steps_per_s"] = _reference_speed(task)
+    return out
+
+
+def _reference_speed(task: str, n: int = 3000) -> float:
+    """The task's reference implementation stepped one env at a time in a Python loop, random actions, resets
+    at its episode ends: gymnasium's env, or dm_control's suite for a ``dmc:`` task. Steps/s."""
+    import numpy as np
+
+    import envs
+
+    rng = np.random.default_rng(0)
+    if envs.is_dmc_task(task):
+        os.environ.setdefault("MUJOCO_GL", "disable")
+        from dm_control import suite
+
+        from envs.dmc_names import parse_name
+
+        env = suite.load(*parse_name(task), task_kwargs={"random": 0})
+        spec = env.action_spec()
+        env.reset()
+        t = time.perf_counter()
+        for _ in range(n):
+            if env.step(rng.uniform(spec.minimum, spec.maximum)).last():
+                env.reset()
+        return n / (time.perf_counter() - t)
+    import gymnasium
+
     genv = gymnasium.make(envs.get_spec(task).gym_id)
     genv.reset(seed=0)
-    rng = np.random.default_rng(0)
     low, high = genv.action_space.low, genv.action_space.high
-    n = 3000
     t = time.perf_counter()
     for _ in range(n):
         _, _, term, trunc, _ = genv.step(rng.uniform(low, high).astype(np.float32))
         if term or trunc:
             genv.reset()
-    out["gymnasium_steps_per_s"] = n / (time.perf_counter() - t)
-    return out
+    return n / (time.perf_counter() - t)
 
 
 ENV_SPEED_TARGETS = {"c_over_mjx": {"hopper": 5.0, "halfcheetah": 5.0, "inverted_double_pendulum": 1.5},
@@ -206,13 +230,13 @@ def env_speed_markdown(results: list[dict], meta: dict) -> str:
         "(one thread: the 'raw loop'), `mujoco.batch.Batch` (what the callback uses), `mujoco.rollout` and "
         "our own `MjData` loop on a Python thread pool (both with the same threads); the program's cost per step "
         f"is the C engine's time per step of the {n} envs in the program minus the batch's outside it (the host "
-        "call, the task math in numpy, resets, wrappers). Last, gymnasium's own "
-        "env stepped one at a time in a Python loop. Targets: C engine >= "
+        "call, the task math in numpy, resets, wrappers). Last, the reference implementation (gymnasium's own "
+        "env; dm_control's suite for a `dmc:` task) stepped one env at a time in a Python loop. Targets: C engine >= "
         f"{ENV_SPEED_TARGETS['c_over_raw_loop']}x the raw loop on every task, and >= 5x MJX on Hopper and "
         "HalfCheetah, >= 1.5x on IDP.", "",
         "| task | MJX, steps/s | C engine in the program, steps/s | C / MJX | raw C loop | C / raw loop | "
         "batch outside JAX | program's cost per step, us | rollout module | own thread pool | targets met | "
-        "gymnasium, 1 env | compile s, MJX / C |",
+        "reference, 1 env | compile s, MJX / C |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in results:

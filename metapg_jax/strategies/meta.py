@@ -5,7 +5,8 @@ Per seed, per cycle (../shared/DESIGN.md steps 1-8; defaults in brackets):
 1. D0: ``explore_steps`` [100] transitions from the teacher pi_e in the
    exploring env (episodes continue across cycles).
 2. pi' = DDPG(pi, D0): ``lookahead_steps`` [= train_steps, 50] updates of a
-   *copy* of the student on minibatches drawn from D0 only.
+   *copy* of the student on minibatches drawn from D0 only
+   (``lookahead_data='d0'``; 'mix', ours: from the replay buffer and D0).
 3. D1: the deterministic pi' from fresh resets for ``eval_steps`` [200] steps
    in ``eval_envs`` [1] envs (auto-resetting). R_hat(pi') = mean over envs of
    the return of the *first* episode, truncated at ``eval_steps``.
@@ -14,7 +15,9 @@ Per seed, per cycle (../shared/DESIGN.md steps 1-8; defaults in brackets):
    With ``baseline='paired'`` (ours) R_hat(pi) is a rollout of the student pi
    itself from the same resets as D1's (stored and counted like D1), so the
    difference is the look-ahead's gain on the same start states, from the
-   first cycle on.
+   first cycle on. With ``baseline='counterfactual'`` (ours) R_hat(pi) is
+   R_hat(pi''), a second look-ahead copy trained as long without D0, rolled
+   out from the same resets (``metapg_jax/counterfactual.py``).
 5. Teacher: ``teacher_steps`` [1] Adam steps of REINFORCE (eq. 5) on D0.
 6. Buffer <- D0, D1 (and the normaliser sees their observations).
 7. Student: ``train_steps`` [50] DDPG updates on the buffer, starting from pi
@@ -22,7 +25,7 @@ Per seed, per cycle (../shared/DESIGN.md steps 1-8; defaults in brackets):
 8. R_hat(pi) for the next cycle: R_hat(pi') (``baseline='lookahead'``, no
    extra samples) or a fresh rollout D2 of the updated student
    (``baseline='fresh'``; D2 is stored and counted like D1); nothing with
-   ``baseline='paired'``.
+   ``baseline='paired'`` or ``'counterfactual'``.
 
 The teacher is the design ``meta.teacher`` names (``metapg_jax.teacher``: the paper's two, and one file each in
 this package for the others). With ``baseline='paired'`` and two or more eval envs the cycle also measures the
@@ -68,6 +71,7 @@ from metapg_jax import teacher as teacher_lib
 from metapg_jax.config import positive
 from metapg_jax.loop import TrainState, Trainer, flatten_time, train_updates
 from metapg_jax.rollout import completed_episode_mean, rollout
+from metapg_jax import counterfactual
 from metapg_jax.teacher import Teacher, TeacherState
 
 
@@ -96,8 +100,11 @@ class MetaConfig:
     eval_envs: int = 1              # parallel envs for D1
     student_from: str = "pi"        # student update starts from pi (paper) or pi'
     # R_hat(pi): the previous cycle's R_hat(pi') ('lookahead'), a fresh rollout of the updated student ('fresh'),
-    # or a rollout of this cycle's student from D1's resets ('paired', ours)
+    # a rollout of this cycle's student from D1's resets ('paired', ours), or of a look-ahead copy trained as long
+    # without D0 ('counterfactual', ours; metapg_jax/counterfactual.py)
     baseline: str = "lookahead"
+    # The look-ahead's minibatches: from D0 alone ('d0', the paper) or from the replay buffer and D0 ('mix', ours)
+    lookahead_data: str = "d0"
     normalize_meta_reward: bool = False  # running mean/std of the meta reward (our addition)
 
 
@@ -204,22 +211,24 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     env_state, _, d0, d0_stats, d0_raw = rollout(trainer.env, teacher_policy, state.env_state, None, k_d0,
                                                  m.explore_steps)
 
-    # 2. Look-ahead: a copy of the student trained on D0 only. `student` itself is not changed.
-    def sample_d0(k):
-        idx = jax.random.randint(k, (cfg.ddpg.batch_size,), 0, m.explore_steps)
-        return jax.tree.map(lambda x: x[idx], d0)
-
-    lookahead, look_metrics = train_updates(learner, student, normalizer, sample_d0, k_look,
-                                            m.lookahead_steps or cfg.run.train_steps)
+    # 2. Look-ahead: a copy of the student trained on D0 (and the buffer: 'mix'). `student` itself is not changed.
+    n_look = m.lookahead_steps or cfg.run.train_steps
+    sample_look = counterfactual.lookahead_sampler(m.lookahead_data, state.buffer, d0, cfg.ddpg.batch_size)
+    lookahead, look_metrics = train_updates(learner, student, normalizer, sample_look, k_look, n_look)
 
     # 3. D1 from pi' and R_hat(pi').
     d1, returns_lookahead = student_rollout(trainer, lookahead.actor, normalizer, k_d1)
     r_hat_lookahead = jnp.mean(returns_lookahead)
 
-    # 4. Meta reward (0 until R_hat(pi) exists). Paired: R_hat(pi) now, from D1's resets.
-    if m.baseline == "paired":
-        d_pi, returns_pi = student_rollout(trainer, student.actor, normalizer, k_d1)
-        tstate = tstate.replace(r_hat=jnp.mean(returns_pi))
+    # 4. Meta reward (0 until R_hat(pi) exists). Paired: R_hat(pi) now, from D1's resets; counterfactual: R_hat(pi'')
+    # from them, pi'' the look-ahead without D0 (the same keys), once the buffer holds a minibatch.
+    if m.baseline in ("paired", "counterfactual"):
+        baseline, ready = student, True
+        if m.baseline == "counterfactual":
+            baseline, ready = counterfactual.without_d0(learner, student, normalizer, state.buffer,
+                                                        cfg.ddpg.batch_size, k_look, n_look)
+        d_pi, returns_pi = student_rollout(trainer, baseline.actor, normalizer, k_d1)
+        tstate = tstate.replace(r_hat=jnp.where(ready, jnp.mean(returns_pi), jnp.nan))
         noise = meta_reward_spread(returns_lookahead, returns_pi)
     else:
         noise = {"meta_reward_sd_paired": jnp.nan, "meta_reward_sd_unpaired": jnp.nan}
@@ -239,7 +248,7 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
     # 6. Buffer <- D0, D1 (the teacher's states and the student's, in the visitation sample).
     state = trainer.store(state.replace(env_state=env_state, key=key), d0)
     state = trainer.store(state, d1, source="student")
-    if m.baseline == "paired":
+    if m.baseline in ("paired", "counterfactual"):
         state = trainer.store(state, d_pi, source="student")
 
     # 7. Student update on the buffer, from pi (paper) or from pi'.
@@ -277,7 +286,7 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
 # ---------------------------------------------------------------------------------------------- the strategy
 NAME = "meta"
 STUDENT_FROM = ("pi", "lookahead")
-BASELINES = ("lookahead", "fresh", "paired")
+BASELINES = ("lookahead", "fresh", "paired", "counterfactual")
 # The tuned preset's changes to the paper preset's Meta schedule, each from a screen cell at 300k steps
 # (results/screen/README.md); applied after the overrides, a field that --set names is left as set.
 TUNED_META = {
@@ -328,10 +337,10 @@ def _derive(config, overrides: dict[str, Any]):
 
 
 def steps_per_cycle(config) -> int:
-    """D0, D1 in every eval env, and D2 (``baseline='fresh'``) or pi's rollout (``'paired'``): every step a cycle
-    stores."""
+    """D0, D1 in every eval env, and D2 (``baseline='fresh'``), the rollout of pi (``'paired'``) or of pi''
+    (``'counterfactual'``): every step a cycle stores."""
     m = config.meta
-    fresh = m.eval_steps * m.eval_envs if m.baseline in ("fresh", "paired") else 0
+    fresh = m.eval_steps * m.eval_envs if m.baseline in ("fresh", "paired", "counterfactual") else 0
     return m.explore_steps + m.eval_steps * m.eval_envs + fresh
 
 
@@ -343,6 +352,9 @@ def _validate(config) -> None:
         raise ValueError(f"meta.student_from must be one of {', '.join(STUDENT_FROM)}, got {m.student_from!r}")
     if m.baseline not in BASELINES:
         raise ValueError(f"meta.baseline must be one of {', '.join(BASELINES)}, got {m.baseline!r}")
+    if m.lookahead_data not in counterfactual.LOOKAHEAD_DATA:
+        raise ValueError(f"meta.lookahead_data must be one of {', '.join(counterfactual.LOOKAHEAD_DATA)}, "
+                         f"got {m.lookahead_data!r}")
     if m.lookahead_steps < 0:
         raise ValueError("meta.lookahead_steps must be >= 0")
     if config.run.method != NAME:
