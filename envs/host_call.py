@@ -28,8 +28,8 @@ import numpy as np
 __all__ = ["THREADS_VARIABLE", "default_threads", "host_call", "resolve_threads"]
 
 
-# What ``--physics-threads`` sets (experiments.run, experiments.sweep): the C engine's threads per batch for every
-# env this process builds without an explicit count.
+# What ``--physics-threads`` sets (experiments.run, experiments.sweep, the grid commands): the C engine's threads per
+# batch for every env this process builds without an explicit count.
 THREADS_VARIABLE = "METAPG_PHYSICS_THREADS"
 
 
