@@ -10,7 +10,10 @@ import time
 from experiments.benchmarks.timing import _timed
 
 
-def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int) -> dict:
+MECHANISMS = ("raw", "batch", "rollout", "pool")
+
+
+def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int, mechanisms=MECHANISMS) -> dict:
     """MuJoCo's C engine stepping ``num_envs`` simulations of the task's gymnasium model outside
     JAX: the limits the C engine inside the program is measured against, and the mechanisms it
     could have used. Uniform random controls over ctrlrange, no resets; steps/s (median of repeats).
@@ -23,6 +26,9 @@ def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int) -
       fields gymnasium's observations read);
     * ``pool``: one ``MjData`` per env and a Python ``ThreadPoolExecutor`` of ``threads`` (mj_step
       releases the GIL), the envs split into ``threads`` slices.
+
+    ``mechanisms``: which of the four to time (``experiments.benchmarks.threads`` times the first two). A ``gym:``
+    task: its gymnasium env's model and frame skip.
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -33,8 +39,9 @@ def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int) -
 
     import envs
 
-    task_env = envs.make_raw(task, physics="mujoco", physics_threads=1).task  # the built-in or dmc: task
-    model, fs = task_env.mj_model, task_env.frame_skip
+    raw_env = envs.make_raw(task, physics="mujoco", physics_threads=1)
+    model, fs = raw_env.mj_model, int(raw_env.frame_skip)
+    derived = getattr(getattr(raw_env, "task", None), "derived_fields", ())  # what the task math reads
     low, high = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
     ctrl = np.random.default_rng(0).uniform(low, high, (steps, num_envs, model.nu))
 
@@ -57,7 +64,7 @@ def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int) -
                 mujoco.mj_step(model, d, nstep=fs)
 
     b = mj_batch.Batch(model, num_envs, nthread=min(threads, num_envs))
-    for name in task_env.derived_fields:
+    for name in derived:
         b.bind(name)
     b_ctrl = b.bind("ctrl")
 
@@ -98,9 +105,9 @@ def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int) -
             for k in range(steps):
                 list(ex.map(part, slices, [k] * len(slices)))
 
-    return {"raw_loop_steps_per_s": median_rate(raw), "batch_steps_per_s": median_rate(batch),
-            "rollout_steps_per_s": median_rate(rollout), "pool_steps_per_s": median_rate(pooled),
-            "c_threads": threads}
+    runs = {"raw": ("raw_loop_steps_per_s", raw), "batch": ("batch_steps_per_s", batch),
+            "rollout": ("rollout_steps_per_s", rollout), "pool": ("pool_steps_per_s", pooled)}
+    return {**{runs[m][0]: median_rate(runs[m][1]) for m in mechanisms}, "c_threads": threads}
 
 
 def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: int = 3,

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import json
 import os
-import statistics
 import subprocess
 import sys
 import time
 
+from experiments.benchmarks.env_speed import _c_loops
 from experiments.benchmarks.timing import _timed
 
 # The training rows: 10-seed TD3 with Gaussian noise (what the benchmark grids run) under the paper preset.
@@ -24,50 +24,12 @@ TRAINING = {"method": "ddpg", "student": "td3", "overrides": {"noise.kind": "nor
 
 
 def _outside_jax(task: str, num_envs: int, steps: int, threads: int, repeats: int) -> dict:
-    """The task's model stepped outside JAX, ``num_envs`` simulations, random controls, no resets: a plain
-    ``mj_step`` loop on one thread, and ``mujoco.batch.Batch`` (what the callback uses) on 1 and ``threads``
-    threads. Steps/s, medians of ``repeats``. (A ``gym:`` task: its gymnasium env's model and frame skip.)"""
-    import mujoco
-    import numpy as np
-    from mujoco import batch as mj_batch
-
-    import envs
-
-    raw = envs.make_raw(task, physics="mujoco", physics_threads=1)
-    model, fs = raw.mj_model, int(raw.frame_skip)
-    low, high = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
-    ctrl = np.random.default_rng(0).uniform(low, high, (steps, num_envs, model.nu))
-
-    def rate(run):
-        times = []
-        for _ in range(repeats):
-            t = time.perf_counter()
-            run()
-            times.append(time.perf_counter() - t)
-        return num_envs * steps / statistics.median(times)
-
-    datas = [mujoco.MjData(model) for _ in range(num_envs)]
-
-    def loop():
-        for d in datas:
-            mujoco.mj_resetData(model, d)
-        for k in range(steps):
-            for d, u in zip(datas, ctrl[k]):
-                d.ctrl[:] = u
-                mujoco.mj_step(model, d, nstep=fs)
-
-    def batch(n_threads):
-        b = mj_batch.Batch(model, num_envs, nthread=min(n_threads, num_envs))
-        b_ctrl = b.bind("ctrl")
-
-        def run():
-            b.reset()
-            for k in range(steps):
-                b_ctrl[:] = ctrl[k]
-                b.step(nstep=fs)
-        return run
-
-    return {"loop_1": rate(loop), "batch_1": rate(batch(1)), f"batch_{threads}": rate(batch(threads))}
+    """The task's model stepped outside JAX (``env_speed._c_loops``): a plain ``mj_step`` loop on one thread, and
+    ``mujoco.batch.Batch`` (what the callback uses) on 1 and ``threads`` threads. Steps/s, medians of ``repeats``."""
+    one = _c_loops(task, num_envs, steps, 1, repeats, mechanisms=("raw", "batch"))
+    many = _c_loops(task, num_envs, steps, threads, repeats, mechanisms=("batch",))
+    return {"loop_1": one["raw_loop_steps_per_s"], "batch_1": one["batch_steps_per_s"],
+            f"batch_{threads}": many["batch_steps_per_s"]}
 
 
 def _in_program(task: str, num_envs: int, steps: int, threads: int, repeats: int) -> tuple[float, float]:
