@@ -178,3 +178,22 @@ def test_a_checkpoints_cost_is_measured_empty_and_full_and_tabled_against_the_gr
                 "checkpointed_chunks": 0, "exit_after_s": 0.6, "lost_s": 43.5, "last_line": "stopped by SIGTERM: x"}]
     md = checkpoint.sigterm_markdown(sigterm, meta, 150_000)
     assert "| 0 | 14.2 | 1.0 | 143 | 0.6 | none | 43.5 |" in md and "- `--term-grace=0`: stopped by SIGTERM: x" in md
+
+
+def test_threads_markdown_pairs_each_tasks_thread_counts():
+    """--threads' tables: a stepping row with both gains and the program's distance from the threaded batch, and a
+    training row per task with both thread counts (a task with one of them only has none)."""
+    from experiments.benchmarks import threads
+
+    meta = {"date": "d", "machine": "m", "jax": "j", "threads": 2, "repeats": 3, "json": "t.json",
+            "conditions": "quiet", "commit": "0123456789abcdef", "dirty": False}
+    step = {"task": "hopper", "num_envs": 8, "program_1": 5000.0, "program_2": 6000.0, "loop_1": 7000.0,
+            "batch_1": 8000.0, "batch_2": 12000.0, "threads_gain_in_program": 1.2, "threads_gain_outside": 1.5,
+            "program_over_loop": 6000 / 7000, "program_over_threaded_batch": 0.5}
+    train = [{"task": "hopper", "threads": 1, "steps_per_s": 3000.0},
+             {"task": "hopper", "threads": 2, "steps_per_s": 3300.0},
+             {"task": "halfcheetah", "threads": 1, "steps_per_s": 4000.0}]
+    md = threads.threads_markdown([step], train, meta)
+    assert "| hopper | 8 | 5,000 | 6,000 | 1.20x | 7,000 | 8,000 | 12,000 | 1.50x | 0.86x | 2.00x slower |" in md
+    assert "| hopper | 3,000 | 3,300 | 1.10x |" in md and "| halfcheetah |" not in md
+    assert "at 0123456 (m;" in md and "quiet" in md
