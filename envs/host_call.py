@@ -2,7 +2,8 @@
 with ``vmap_method="expand_dims"``, the float32 <-> uint32 word views of the state the envs carry, and the thread
 count of MuJoCo's batch.
 
-Everything here is public JAX API (no ``jax._src``; ``tests/test_imports.py`` checks the repository for it).
+Everything here is public JAX API (nothing from JAX's private package; ``tests/test_imports.py`` checks the repository
+for it).
 Under ``vmap`` the callback is not looped: each vmap adds a leading batch axis to its one argument, so one call
 gets the whole seeds x envs batch. Under ``jit`` with the seed axis sharded over several devices (automatic
 sharding, as ``experiments.run`` does it) JAX runs the callback once, on the first device, with the whole batch
