@@ -196,3 +196,16 @@ def sigkill_resume_and_compare(tmp_path, args, chunks, resume_args=()):
     assert run.main(args + ["--out", full]) == 0
     assert_same_run(full, out)
     return full
+
+
+def assert_run_refuses(argv, message, tmp_path, capsys) -> None:
+    """``experiments.run`` with ``argv`` (writing to ``tmp_path/x``) exits 2 within seconds, nothing traced or
+    compiled: one line on stderr starting with ``message``, and no output folder."""
+    from experiments import run
+
+    t0 = time.perf_counter()
+    assert run.main(argv + ["--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(message) and len(err.splitlines()) == 1, err
+    assert not (tmp_path / "x").exists()
+    assert time.perf_counter() - t0 < 5  # nothing was traced or compiled
