@@ -110,6 +110,35 @@ def _c_loops(task: str, num_envs: int, steps: int, threads: int, repeats: int, m
     return {**{runs[m][0]: median_rate(runs[m][1]) for m in mechanisms}, "c_threads": threads}
 
 
+def time_stepping(task: str, num_envs: int, steps: int, repeats: int, trajectory: bool = False, **overrides):
+    """``envs.make(task, **overrides)`` stepped alone: a jitted scan of ``steps`` uniform-random steps of
+    ``num_envs`` vmapped envs with the training wrappers (auto-reset included). Returns (steps/s, median of
+    ``repeats``; every repeat's seconds; compile seconds; with ``trajectory``, the (obs, reward) of one more call,
+    else None)."""
+    import jax
+    import jax.numpy as jnp
+
+    import envs
+
+    env = envs.make(task, **overrides)
+
+    def run(state, key):
+        def step(s, k):
+            a = jax.random.uniform(k, (num_envs, env.action_size), jnp.float32, -1.0, 1.0)
+            s = jax.vmap(env.step)(s, a)
+            return s, (s.obs, s.reward)
+
+        return jax.lax.scan(step, state, jax.random.split(key, steps))
+
+    t = time.perf_counter()
+    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
+    fn = jax.jit(run).lower(state, jax.random.PRNGKey(1)).compile()
+    compile_s = time.perf_counter() - t
+    seconds, times = _timed(fn, (state, jax.random.PRNGKey(1)), repeats)
+    traj = jax.device_get(fn(state, jax.random.PRNGKey(1))[1]) if trajectory else None
+    return num_envs * steps / seconds, times, compile_s, traj
+
+
 def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: int = 3,
                       stock_mjx: bool = False, engines=("mjx", "mujoco")) -> dict:
     """Env stepping alone, ``num_envs`` envs: our task through the compiled program (a jitted scan,
@@ -120,31 +149,13 @@ def measure_env_speed(task: str, num_envs: int = 8, steps: int = 1000, repeats: 
     With ``stock_mjx``, MJX is timed a second time with its stock line search
     (``early_exit_linesearch=False``) and the two trajectories are checked to be identical
     (see envs/mujoco_base.py, "Speed"). ``engines`` without "mjx": the C engine's columns alone (a MuJoCo task)."""
-    import jax
-    import jax.numpy as jnp
     import numpy as np
 
     import envs
     from envs.host_call import default_threads
 
     def time_ours(**overrides):
-        env = envs.make(task, **overrides)
-
-        def run(state, key):
-            def step(s, k):
-                a = jax.random.uniform(k, (num_envs, env.action_size), jnp.float32, -1.0, 1.0)
-                s = jax.vmap(env.step)(s, a)
-                return s, (s.obs, s.reward)
-
-            return jax.lax.scan(step, state, jax.random.split(key, steps))
-
-        t = time.perf_counter()
-        state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
-        fn = jax.jit(run).lower(state, jax.random.PRNGKey(1)).compile()
-        compile_s = time.perf_counter() - t
-        seconds, times = _timed(fn, (state, jax.random.PRNGKey(1)), repeats)
-        traj = jax.device_get(fn(state, jax.random.PRNGKey(1))[1])
-        return num_envs * steps / seconds, times, compile_s, traj
+        return time_stepping(task, num_envs, steps, repeats, trajectory=True, **overrides)
 
     out = {"task": task, "num_envs": num_envs, "steps": steps}
     if "mjx" in engines or not envs.has_mujoco(task):

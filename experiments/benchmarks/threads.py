@@ -13,10 +13,8 @@ import json
 import os
 import subprocess
 import sys
-import time
 
-from experiments.benchmarks.env_speed import _c_loops
-from experiments.benchmarks.timing import _timed
+from experiments.benchmarks.env_speed import _c_loops, time_stepping
 
 # The training rows: 10-seed TD3 with Gaussian noise (what the benchmark grids run) under the paper preset.
 TRAINING = {"method": "ddpg", "student": "td3", "overrides": {"noise.kind": "normal"}, "preset": "paper",
@@ -32,37 +30,16 @@ def _outside_jax(task: str, num_envs: int, steps: int, threads: int, repeats: in
             f"batch_{threads}": many["batch_steps_per_s"]}
 
 
-def _in_program(task: str, num_envs: int, steps: int, threads: int, repeats: int) -> tuple[float, float]:
-    """The task on the C engine inside the program at ``threads`` threads: a jitted scan of ``steps``
-    uniform-random steps of ``num_envs`` vmapped envs with the training wrappers (auto-reset included).
-    (steps/s, median of ``repeats``; compile seconds)."""
-    import jax
-    import jax.numpy as jnp
-
-    import envs
-
-    env = envs.make(task, physics="mujoco", physics_threads=threads)
-
-    def run(state, key):
-        def step(s, k):
-            a = jax.random.uniform(k, (num_envs, env.action_size), jnp.float32, -1.0, 1.0)
-            s = jax.vmap(env.step)(s, a)
-            return s, s.reward
-
-        return jax.lax.scan(step, state, jax.random.split(key, steps))
-
-    t = time.perf_counter()
-    state = jax.jit(jax.vmap(env.reset))(jax.random.split(jax.random.PRNGKey(0), num_envs))
-    fn = jax.jit(run).lower(state, jax.random.PRNGKey(1)).compile()
-    compile_s = time.perf_counter() - t
-    seconds, _ = _timed(fn, (state, jax.random.PRNGKey(1)), repeats)
-    return num_envs * steps / seconds, compile_s
+def _in_program(task: str, num_envs: int, steps: int, threads: int, repeats: int) -> float:
+    """The task on the C engine inside the program at ``threads`` threads (``env_speed.time_stepping``): steps/s,
+    the median of ``repeats``."""
+    return time_stepping(task, num_envs, steps, repeats, physics="mujoco", physics_threads=threads)[0]
 
 
 def measure_stepping(task: str, num_envs: int, threads: int, steps: int = 500, repeats: int = 3) -> dict:
     """One row of env stepping alone: in the program at 1 and ``threads`` threads, and outside JAX."""
-    one, _ = _in_program(task, num_envs, steps, 1, repeats)
-    many, _ = _in_program(task, num_envs, steps, threads, repeats)
+    one = _in_program(task, num_envs, steps, 1, repeats)
+    many = _in_program(task, num_envs, steps, threads, repeats)
     out = {"task": task, "num_envs": num_envs, "threads": threads, "steps": steps,
            "program_1": one, f"program_{threads}": many, **_outside_jax(task, num_envs, steps, threads, repeats)}
     out["threads_gain_in_program"] = many / one
