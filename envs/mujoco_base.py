@@ -21,10 +21,12 @@ result. Same model, same options, same per-env iterations: the physics is
 unchanged. Hopper's and IDP's trajectories were bitwise equal to the stock
 scan's where first measured; the two loops compile to different programs,
 though, and on another CPU (CI's) Hopper's differed by up to 1.9e-6 from step
-11 on, round-off: tests/test_envs_mujoco.py asserts agreement within 1e-5
-(of max(1, |x|)) and the same terminations on Hopper; ``python -m
-experiments.bench --env-speed`` compares the two on every task, and the
-gymnasium cross-checks run with it on. Only MJX's
+11 on, round-off. tests/test_envs_mujoco.py checks the loop against MJX's
+own under ``vmap`` (bit for bit, rows stopping at once, early and at the
+cap) and that our step's line search goes through it; ``python -m
+experiments.bench --env-speed --stock-mjx`` compares whole trajectories
+with stock MJX on every task, and the gymnasium cross-checks run with the
+early exit on. Only MJX's
 reverse-mode differentiability through the line search is lost, which
 nothing here uses. ``early_exit_linesearch=False`` gives stock MJX.
 """

@@ -89,20 +89,27 @@ class Sweep:
         return jnp.asarray([[float(get_field(c, f)) for f in self.fields] for c in settings], jnp.float32)
 
 
+# (config, field) -> whether the field is structural: a field's answer depends on the config alone (``env`` is
+# the config's task), and a sweep started again in the same process (a resume, a notebook) need not trace again.
+_STRUCTURAL: dict[tuple[Config, str], bool] = {}
+
+
 def structural_fields(config: Config, env: Env, fields: Sequence[str]) -> list[str]:
     """The fields among ``fields`` that cannot vary within one program: not a number in ``config``, or
     a number the program reads as a Python value (found by tracing init and a chunk with that field
-    alone as a traced value; no compile)."""
-    out = []
+    alone as a traced value; no compile). ``env`` is ``config``'s task; each answer is kept for the
+    process."""
     key = jax.random.PRNGKey(0)
     for field in fields:
-        if not is_number(get_field(config, field)):
-            out.append(field)
+        if (config, field) in _STRUCTURAL:
             continue
-        sweep = Sweep(config, env, (field,))
-        value = sweep.values([config])[0]
-        try:
-            jax.eval_shape(lambda k, v: sweep.train_chunk(sweep.init(k, v), v), key, value)
-        except _STRUCTURAL_ERRORS:
-            out.append(field)
-    return out
+        structural = not is_number(get_field(config, field))
+        if not structural:
+            sweep = Sweep(config, env, (field,))
+            value = sweep.values([config])[0]
+            try:
+                jax.eval_shape(lambda k, v: sweep.train_chunk(sweep.init(k, v), v), key, value)
+            except _STRUCTURAL_ERRORS:
+                structural = True
+        _STRUCTURAL[(config, field)] = structural
+    return [field for field in fields if _STRUCTURAL[(config, field)]]

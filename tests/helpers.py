@@ -209,3 +209,26 @@ def assert_run_refuses(argv, message, tmp_path, capsys) -> None:
     assert err.startswith(message) and len(err.splitlines()) == 1, err
     assert not (tmp_path / "x").exists()
     assert time.perf_counter() - t0 < 5  # nothing was traced or compiled
+
+
+def rewind_resume_and_compare(tmp_path, args):
+    """Runs ``args`` (a checkpoint per chunk) in this process, keeps a copy of its outputs, rewinds the run
+    to the checkpoint before its last chunk (the last one deleted, as a run killed in its last chunk leaves
+    it), resumes it in this process and asserts it equals the copy: the state a checkpoint holds continues
+    the run bit for bit. (Killing a process mid-run is tested once, ``sigkill_resume_and_compare``.)"""
+    import shutil
+
+    from experiments import run
+    from metapg_jax.host.checkpoint import Checkpointer
+
+    out, full = str(tmp_path / "rewound"), str(tmp_path / "full")
+    assert run.main(args + ["--out", out]) == 0
+    shutil.copytree(out, full)
+    checkpoints = Checkpointer(os.path.join(out, "checkpoints"))
+    last = checkpoints.steps()[-1]
+    checkpoints.manager.delete(last)
+    checkpoints.close()
+    os.remove(os.path.join(out, "summary.json"))
+    assert run.main(["--resume", out, "--quiet", "--no-plot"]) == 0
+    assert_same_run(full, out)
+    return full

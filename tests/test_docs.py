@@ -23,7 +23,7 @@ def indented_commands(text):
 def test_readme_starts_with_the_main_job_and_the_test_command_ci_runs():
     commands = indented_commands(read("README.md"))[:2]
     assert commands[0] == "pip install -e . && python -m experiments.run --env=inverted_double_pendulum --seeds=8"
-    assert commands[1] == 'pip install -e ".[dev]" && python -m pytest -q -n 2'
+    assert commands[1] == 'pip install -e ".[dev]" && python -m pytest -q -n 2 --dist loadfile --no-loadscope-reorder'
     ci = [line.strip() for line in read(".ci/run").splitlines()]
     marker = ci.index("# --- the README's test command (keep the two in sync) ---")
     assert ci[marker + 1] == commands[1], "README's test command and the one .ci/run runs differ"

@@ -20,7 +20,7 @@ from metapg_jax.strategies.sac import SAC, SACConfig, squashed_gaussian_log_prob
 from metapg_jax.train import make_train, seed_keys, vmap_seeds
 from metapg_jax.types import Transition
 from tests import golden
-from tests.helpers import sigkill_resume_and_compare, tiny_argv
+from tests.helpers import rewind_resume_and_compare, tiny_argv
 
 GAMMA, TAU, L2 = 0.99, 0.01, 0.01
 
@@ -241,12 +241,12 @@ def test_policy_export_round_trip_gives_tanh_of_the_mean(tmp_path):
 
 
 @pytest.mark.slow
-def test_a_sac_run_with_colored_noise_resumes_bit_for_bit_after_sigkill(tmp_path):
+def test_a_sac_run_with_colored_noise_resumes_bit_for_bit(tmp_path):
     """SAC exploring with its own policy and pink sampling noise: the temperature, the student's key and the
-    episode's colored sequence are in the checkpoint, so a run killed mid-way and resumed draws the same noise
-    and ends with the numbers of an uninterrupted one."""
-    args = [*tiny_argv("own", **{"run.buffer_size": 1800}), "--student=sac", "--noise=pink", "--steps=1800",
-            "--checkpoint-every=1"]
-    full = sigkill_resume_and_compare(tmp_path, args, chunks=6)
+    colored sequence are in the checkpoint, so a run resumed from it mid-episode (70-step episodes, 300-step
+    chunks) draws the same noise and ends with the numbers of an uninterrupted one."""
+    args = [*tiny_argv("own", **{"run.buffer_size": 1800, "env.episode_length": 70}), "--student=sac",
+            "--noise=pink", "--steps=1800", "--checkpoint-every=1"]
+    full = rewind_resume_and_compare(tmp_path, args)
     stored = json.load(open(os.path.join(full, "config.json")))["config"]
     assert stored["student"] == "sac" and stored["noise"]["kind"] == "pink"
