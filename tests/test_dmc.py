@@ -190,14 +190,14 @@ def test_a_dmc_task_trains_from_the_command_line_and_resumes_bit_for_bit(tmp_pat
     from experiments import run
     from tests.helpers import assert_same_run, tiny_argv
 
-    argv = [*tiny_argv("ddpg", env="dmc:cartpole-swingup_sparse"), "--noise=normal", "--compile-cache=off",
+    argv = [*tiny_argv("ddpg", env="dmc:cartpole-swingup_sparse"), "--noise=normal",
             "--set", "run.buffer_size=600"]
     out, full = tmp_path / "run", tmp_path / "full"
     assert run.main(argv + ["--steps=300", "--out", str(out)]) == 0
     stored = json.load(open(out / "config.json"))
     assert stored["config"]["env"]["name"] == "dmc:cartpole-swingup_sparse"
     assert stored["config"]["env"]["physics"] == "mujoco"
-    assert run.main(["--resume", str(out), "--steps=600", "--quiet", "--no-plot", "--compile-cache=off"]) == 0
+    assert run.main(["--resume", str(out), "--steps=600", "--quiet", "--no-plot"]) == 0
     assert run.main(argv + ["--steps=600", "--out", str(full)]) == 0
     assert_same_run(str(full), str(out))
 

@@ -200,7 +200,7 @@ def test_a_gym_task_trains_from_the_command_line_and_resumes_bit_for_bit(tmp_pat
     from tests.helpers import assert_same_run, tiny_argv
 
     name = "gym:Walker2d-v5(ctrl_cost_weight=0.01)"
-    argv = [*tiny_argv("ddpg", env=name), "--noise=normal", "--student=td3", "--compile-cache=off",
+    argv = [*tiny_argv("ddpg", env=name), "--noise=normal", "--student=td3",
             "--set", "run.buffer_size=600"]
     cwd = os.getcwd()
     os.chdir(tmp_path)
@@ -214,7 +214,7 @@ def test_a_gym_task_trains_from_the_command_line_and_resumes_bit_for_bit(tmp_pat
     assert stored["config"]["env"]["name"] == name and stored["config"]["env"]["physics"] == "mujoco"
     summary = json.load(open(out / "summary.json"))
     assert summary["env"] == name and np.isfinite(summary["final_return_per_seed"]).all()
-    assert run.main(["--resume", str(out), "--steps=600", "--quiet", "--no-plot", "--compile-cache=off"]) == 0
+    assert run.main(["--resume", str(out), "--steps=600", "--quiet", "--no-plot"]) == 0
     assert run.main(argv + ["--steps=600", "--out", str(tmp_path / "full")]) == 0
     assert_same_run(str(tmp_path / "full"), str(out))
 

@@ -278,15 +278,14 @@ def test_cli_refuses_bad_physics_before_compiling(argv, message, tmp_path, capsy
 
 # DDPG (a smaller program than Meta's, whose C-engine runs test_train.py and the tiny run per task below
 # cover): the C engine's state in checkpoints and a resume bit for bit.
-TINY_IP = [*tiny_argv("ddpg", env="inverted_pendulum"), "--physics=mujoco", "--checkpoint-every=1",
-           "--compile-cache=off"]
+TINY_IP = [*tiny_argv("ddpg", env="inverted_pendulum"), "--physics=mujoco", "--checkpoint-every=1"]
 
 
 @pytest.mark.slow
 def test_c_engine_run_resumes_bit_for_bit_after_sigkill(tmp_path):
     # Two physics threads, resumed on one: the thread count is not part of the run and changes no number.
     full = sigkill_resume_and_compare(tmp_path, TINY_IP + ["--steps=1800", "--physics-threads=2"], chunks=6,
-                                      resume_args=["--compile-cache=off", "--physics-threads=1"])
+                                      resume_args=["--physics-threads=1"])
     summary = json.load(open(os.path.join(full, "summary.json")))
     assert summary["physics"] == "mujoco"
 
