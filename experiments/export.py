@@ -5,10 +5,11 @@
 
     python -m experiments.export RUN --replay 10 --report replay.json   # and replay them in gymnasium
 
-``--replay N`` runs each seed's exported policy for N episodes in gymnasium's own environment of the task
-(MuJoCo's C engine, episode seeds 0..N-1, actions mapped from [-1, 1] to the env's bounds) and sets the
-mean return beside the run's last in-training evaluation (``metrics.jsonl``); ``--report`` stores both as
-JSON with the run's provenance and the command.
+``--replay N`` runs each seed's exported policy for N episodes in the task's own reference environment
+(gymnasium's, with a ``gym:`` task's keyword arguments; for a ``dmc:`` task dm_control's suite, its observation
+dict flattened in key order as in training), on MuJoCo's C engine, episode seeds 0..N-1, actions mapped from
+[-1, 1] to the env's bounds, and sets the mean return beside the run's last in-training evaluation
+(``metrics.jsonl``); ``--report`` stores both as JSON with the run's provenance and the command.
 
 Then, anywhere (NumPy only)::
 
@@ -90,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
         report = replay_report(out, cfg, args.run_dir, meta["chunks_done"], args.replay,
                                ["python", "-m", "experiments.export", *(sys.argv[1:] if argv is None else argv)])
         for seed in report["seeds"]:
-            print(f"seed {seed['seed']}: gymnasium {seed['replay_mean']:,.1f} over {args.replay} episodes, "
+            print(f"seed {seed['seed']}: {report['reference']} {seed['replay_mean']:,.1f} over {args.replay} episodes, "
                   f"in-training evaluation {seed['training_eval']:,.1f}")
         if args.report:
             from metapg_jax.host.runfiles import write_json_atomic
@@ -100,9 +101,9 @@ def main(argv: list[str] | None = None) -> int:
     return 0
 
 
-def replay_in_gymnasium(policy_path: str, gym_id: str, seed: int, episodes: int) -> list[float]:
-    """The returns of ``episodes`` episodes of seed ``seed``'s exported policy in ``gymnasium.make(gym_id)``
-    (episode i reset with seed i; the policy's [-1, 1] actions mapped to the env's action bounds)."""
+def replay_in_gymnasium(policy_path: str, gym_id: str, seed: int, episodes: int, **kwargs) -> list[float]:
+    """The returns of ``episodes`` episodes of seed ``seed``'s exported policy in ``gymnasium.make(gym_id,
+    **kwargs)`` (episode i reset with seed i; the policy's [-1, 1] actions mapped to the env's action bounds)."""
     import gymnasium
     import numpy as np
 
@@ -111,7 +112,7 @@ def replay_in_gymnasium(policy_path: str, gym_id: str, seed: int, episodes: int)
 
     act = load_policy(policy_path, seed=seed)
     with without_the_settotalmass_warning():
-        env = gymnasium.make(gym_id)
+        env = gymnasium.make(gym_id, **kwargs)
     low, high = env.action_space.low.astype(np.float64), env.action_space.high.astype(np.float64)
     returns = []
     try:
@@ -129,6 +130,32 @@ def replay_in_gymnasium(policy_path: str, gym_id: str, seed: int, episodes: int)
     return returns
 
 
+def replay_in_dm_control(policy_path: str, name: str, seed: int, episodes: int) -> list[float]:
+    """The returns of ``episodes`` episodes of seed ``seed``'s exported policy in dm_control's suite task ``name``
+    (``dmc:<domain>-<task>``; episode i loaded with ``task_kwargs={"random": i}``; the observation dict flattened
+    in key order and cast to float32, as the ``dmc:`` tasks give it; actions mapped to the action spec's bounds)."""
+    import numpy as np
+    from dm_control import suite
+
+    from envs import dmc_names
+    from metapg_jax.host.policy import load_policy
+
+    act = load_policy(policy_path, seed=seed)
+    domain, task = dmc_names.parse_name(name)
+    returns = []
+    for episode in range(episodes):
+        env = suite.load(domain, task, task_kwargs={"random": episode})
+        spec = env.action_spec()
+        low, high = spec.minimum.astype(np.float64), spec.maximum.astype(np.float64)
+        step, total = env.reset(), 0.0
+        while not step.last():
+            obs = np.concatenate([np.asarray(v, np.float64).ravel() for v in step.observation.values()])
+            step = env.step(low + (np.asarray(act(obs.astype(np.float32)), np.float64) + 1.0) * 0.5 * (high - low))
+            total += float(step.reward)
+        returns.append(total)
+    return returns
+
+
 def replay_report(policy_path: str, cfg, run_dir: str, chunks_done: int, episodes: int, command: list[str]) -> dict:
     """Per seed: the gymnasium replay's returns (``replay_in_gymnasium``) beside the run's in-training evaluation
     after the same chunk, with the provenance of the run and of the replay."""
@@ -136,21 +163,31 @@ def replay_report(policy_path: str, cfg, run_dir: str, chunks_done: int, episode
 
     import numpy as np
 
-    from envs import get_spec
+    from envs import get_spec, is_dmc_task, is_gym_task
     from metapg_jax.host import provenance, runfiles
 
-    gym_id = get_spec(cfg.env.name).gym_id
+    name = cfg.env.name
+    if is_dmc_task(name):
+        envs_of = {"reference": "dm_control", "dm_control": name}
+        replay = lambda seed: replay_in_dm_control(policy_path, name, seed, episodes)
+    else:
+        from envs.gym_names import parse_name
+
+        gym_id, kwargs = get_spec(name).gym_id, dict(parse_name(name)[1]) if is_gym_task(name) else {}
+        envs_of = {"reference": "gymnasium", "gym_id": gym_id, "gym_kwargs": kwargs}
+        replay = lambda seed: replay_in_gymnasium(policy_path, gym_id, seed, episodes, **kwargs)
     rows = [r for r in runfiles.read_jsonl(os.path.join(run_dir, "metrics.jsonl")) if r["chunk"] == chunks_done - 1]
     training = {int(r["seed"]): float(r["eval_return"]) for r in rows}
     with open(os.path.join(run_dir, "config.json")) as f:
         stored = json.load(f)
     seeds = []
     for seed in sorted(training):
-        returns = replay_in_gymnasium(policy_path, gym_id, seed, episodes)
+        returns = replay(seed)
         seeds.append({"seed": seed, "replay_returns": returns, "replay_mean": float(np.mean(returns)),
                       "training_eval": training[seed],
-                      "relative_difference": float((np.mean(returns) - training[seed]) / abs(training[seed]))})
-    return {"gym_id": gym_id, "episodes": episodes, "chunks_done": chunks_done, "command": command,
+                      "relative_difference": (float((np.mean(returns) - training[seed]) / abs(training[seed]))
+                                              if training[seed] else None)})  # a sparse task's 0: none
+    return {**envs_of, "episodes": episodes, "chunks_done": chunks_done, "command": command,
             "run": {k: stored.get(k) for k in ("run_args", "commit", "dirty")} | {"physics": cfg.env.physics},
             "training_eval_episodes": cfg.run.eval_episodes,
             "replayed": {"date": datetime.date.today().isoformat(), **provenance.record()}, "seeds": seeds}

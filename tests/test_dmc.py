@@ -200,6 +200,17 @@ def test_a_dmc_task_trains_from_the_command_line_and_resumes_bit_for_bit(tmp_pat
     assert run.main(["--resume", str(out), "--steps=600", "--quiet", "--no-plot"]) == 0
     assert run.main(argv + ["--steps=600", "--out", str(full)]) == 0
     assert_same_run(str(full), str(out))
+    # The exported policies replayed in dm_control's own suite (experiments.export --replay).
+    from experiments import export
+
+    report = tmp_path / "replay.json"
+    assert export.main([str(out), "--out", str(tmp_path / "p.npz"), "--replay", "2", "--report", str(report)]) == 0
+    got = json.load(open(report))
+    assert got["reference"] == "dm_control" and got["dm_control"] == "dmc:cartpole-swingup_sparse"
+    for seed in got["seeds"]:
+        assert len(seed["replay_returns"]) == 2 and all(0.0 <= r <= 1000.0 for r in seed["replay_returns"])
+        assert seed["replay_returns"] == export.replay_in_dm_control(str(tmp_path / "p.npz"),
+                                                                     "dmc:cartpole-swingup_sparse", seed["seed"], 2)
 
 
 def test_spec_and_engines():

@@ -217,6 +217,17 @@ def test_a_gym_task_trains_from_the_command_line_and_resumes_bit_for_bit(tmp_pat
     assert run.main(["--resume", str(out), "--steps=600", "--quiet", "--no-plot"]) == 0
     assert run.main(argv + ["--steps=600", "--out", str(tmp_path / "full")]) == 0
     assert_same_run(str(tmp_path / "full"), str(out))
+    # experiments.export --replay: gymnasium's env with the task's keyword arguments (the control cost is 10x
+    # gymnasium's default here, so a replay without them would give other returns)
+    from experiments import export
+
+    report, policy = tmp_path / "replay.json", str(tmp_path / "p.npz")
+    assert export.main([str(out), "--out", policy, "--replay", "1", "--report", str(report)]) == 0
+    got = json.load(open(report))
+    assert (got["reference"], got["gym_id"], got["gym_kwargs"]) == ("gymnasium", "Walker2d-v5", {"ctrl_cost_weight": 0.01})
+    returns = got["seeds"][0]["replay_returns"]
+    assert returns == export.replay_in_gymnasium(policy, "Walker2d-v5", 0, 1, ctrl_cost_weight=0.01)
+    assert returns != export.replay_in_gymnasium(policy, "Walker2d-v5", 0, 1)
 
 
 def test_names_with_keyword_arguments():

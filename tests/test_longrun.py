@@ -321,7 +321,8 @@ def test_export_replays_the_policies_in_gymnasium_and_stores_the_report(referenc
     argv = [reference, "--out", str(tmp_path / "p.npz"), "--replay", "2", "--report", str(report)]
     assert export.main(argv) == 0
     got = json.load(open(report))
-    assert got["gym_id"] == "Pendulum-v1" and got["episodes"] == 2 and got["command"][3:] == argv
+    assert got["gym_id"] == "Pendulum-v1" and got["gym_kwargs"] == {} and got["reference"] == "gymnasium"
+    assert got["episodes"] == 2 and got["command"][3:] == argv
     last = {r["seed"]: r["eval_return"] for r in metrics_rows(reference) if r["chunk"] == 2}
     assert [s["seed"] for s in got["seeds"]] == [0, 1]
     for s in got["seeds"]:
