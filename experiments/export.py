@@ -3,7 +3,7 @@
     python -m experiments.export runs/pendulum-meta-paper-s0                 # latest checkpoint
     python -m experiments.export runs/pendulum-meta-paper-s0 --chunk 10 --out policy_10.npz
 
-    python -m experiments.export RUN --replay 10 --report replay.json   # and replay them in gymnasium
+    python -m experiments.export RUN --replay 10 --report replay.json   # and replay them in the task's own env
 
 ``--replay N`` runs each seed's exported policy for N episodes in the task's own reference environment
 (gymnasium's, with a ``gym:`` task's keyword arguments; for a ``dmc:`` task dm_control's suite, its observation
@@ -33,7 +33,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--chunk", type=int, default=None, help="checkpoint to export (chunks done); default the latest")
     p.add_argument("--out", default=None, help="output file (default RUN_DIR/policy.npz, or policy_<chunk>.npz)")
     p.add_argument("--replay", type=int, default=0, metavar="N",
-                   help="replay each seed's exported policy for N episodes in gymnasium's environment of the task")
+                   help="replay each seed's exported policy for N episodes in the task's reference environment "
+                        "(gymnasium's; dm_control's suite for a dmc: task)")
     p.add_argument("--report", default=None, help="with --replay: write the replay's returns to this JSON file")
     args = p.parse_args(argv)
     if args.replay < 0 or (args.report and not args.replay):
@@ -157,8 +158,8 @@ def replay_in_dm_control(policy_path: str, name: str, seed: int, episodes: int) 
 
 
 def replay_report(policy_path: str, cfg, run_dir: str, chunks_done: int, episodes: int, command: list[str]) -> dict:
-    """Per seed: the gymnasium replay's returns (``replay_in_gymnasium``) beside the run's in-training evaluation
-    after the same chunk, with the provenance of the run and of the replay."""
+    """Per seed: the replay's returns (``replay_in_gymnasium``, or ``replay_in_dm_control`` for a ``dmc:`` task)
+    beside the run's in-training evaluation after the same chunk, with the provenance of the run and of the replay."""
     import datetime
 
     import numpy as np
