@@ -197,10 +197,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     compile_cache.enable(cache)
-    from metapg_jax.train import make_train, vmap_seeds
+    from metapg_jax.host.driver import trainer_for
+    from metapg_jax.train import vmap_seeds
 
     try:
-        trainer = make_train(cfg)
+        trainer = trainer_for(cfg)  # the config's, kept for the process with the programs the driver compiles
         check_fits(state_bytes(vmap_seeds(trainer.init), abstract_keys(a["seeds"])),
                    f"--seeds={a['seeds']} of {run_label(cfg)} with a replay buffer of {cfg.buffer_capacity:,}")
     except ValueError as err:

@@ -242,6 +242,8 @@ def main(argv: list[str] | None = None) -> int:
         except runner.Stopped as err:  # between two groups' loops
             print(f"\nstopped by {err.who} between two groups; continue with: {resume}", file=sys.stderr, flush=True)
             return err.status
+    from experiments.analysis.render.sweeps import write_summary
+
     write_summary(out, settings, configs, plot=not args.no_plot)
     return 0
 
@@ -257,7 +259,7 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
     import jax
     import jax.numpy as jnp
 
-    from metapg_jax.host import runfiles
+    from metapg_jax.host import programs, runfiles
     from metapg_jax.host.checkpoint import Checkpointer
     from metapg_jax.host.driver import Recorder, checkpoint_due
     from metapg_jax.host.loggers import Loggers, ProgressBar
@@ -293,14 +295,18 @@ def run_group(out: str, g: int, group: dict, settings, configs, env, a: dict, ar
         values = jnp.repeat(sweep.values([configs[k] for k in members]), num_seeds, axis=0)  # setting-major
         keys = jnp.concatenate([seed_keys(a["seed"], num_seeds)] * len(members))
         t0 = time.perf_counter()
-        init_fn = jax.jit(vmap_seeds(sweep.init))
+        # The group's programs are kept for the process (metapg_jax.host.programs): a sweep started again in it
+        # (a resume, a notebook) traces nothing again.
+        init_fn, _ = programs.kept(programs.key("sweep init", cfg, sweep.fields), lambda: jax.jit(vmap_seeds(sweep.init)))
         if start:
             state, _ = checkpointer.restore(jax.eval_shape(init_fn, keys, values))
             metrics_path = os.path.join(out, "metrics.jsonl")
             runfiles.truncate_jsonl(metrics_path, lambda r: r["setting"] not in members or r["chunk"] < start)
         else:
             state = init_fn(keys, values)
-        chunk_fn = jax.jit(vmap_seeds(sweep.train_chunk), donate_argnums=0).lower(state, values).compile()
+        chunk_fn, _ = programs.kept(programs.key("sweep chunk", cfg, sweep.fields, programs.shapes((state, values))),
+                                    lambda: jax.jit(vmap_seeds(sweep.train_chunk), donate_argnums=0).lower(
+                                        state, values).compile())
         print(f"{label}: {len(members)} x {num_seeds} runs, compiled in {time.perf_counter() - t0:.1f} s"
               + (f", resumed after {start} of {cfg.num_chunks} chunks" if start else ""), flush=True)
         bar = [] if args.quiet else [ProgressBar(f"group {g + 1}", runs=len(members) * num_seeds)]
@@ -327,73 +333,6 @@ def setting_columns(members: list[int], num_seeds: int):
         return rows
 
     return columns
-
-
-def summary_rows(out: str, settings, configs) -> list[dict]:
-    """Per setting: final return (experiments.analysis.stats: mean of each seed's last 10% of evaluations) mean ±
-    std over seeds and the 95% t interval; a setting with non-finite parameters is flagged."""
-    import numpy as np
-
-    from experiments.analysis.stats import final_returns, mean_std, t_interval
-    from metapg_jax.host import runfiles
-
-    rows = runfiles.read_jsonl(os.path.join(out, "metrics.jsonl"))
-    result = []
-    for k, s in enumerate(settings):
-        mine = [r for r in rows if r["setting"] == k]
-        seeds = sorted({r["seed"] for r in mine})
-        chunks = sorted({r["chunk"] for r in mine})
-        entry = {"setting": k, "values": s, "seeds": len(seeds), "evaluations": len(chunks),
-                 "complete": len(chunks) == configs[k].num_chunks, "finite": all(r.get("finite", True) for r in mine)}
-        if mine:
-            curve = np.full((len(seeds), len(chunks)), np.nan)
-            for r in mine:
-                curve[seeds.index(r["seed"]), chunks.index(r["chunk"])] = (
-                    np.nan if r["eval_return"] is None else r["eval_return"])
-            per_seed = final_returns(curve)
-            entry["per_seed"] = [float(x) for x in per_seed]
-            if entry["finite"] and np.isfinite(per_seed).all():
-                entry["mean"], entry["std"] = mean_std(per_seed)
-                mean, half = t_interval(per_seed)
-                entry["ci95"] = [mean - half, mean + half] if len(per_seed) > 1 else None
-        result.append(entry)
-    ranked = [e for e in result if "mean" in e and e["complete"]]
-    if ranked:
-        max(ranked, key=lambda e: e["mean"])["best"] = True
-    return result
-
-
-def write_summary(out: str, settings, configs, plot: bool = True) -> list[dict]:
-    from experiments.analysis.stats import FINAL_DEFINITION, fmt
-    from metapg_jax.host import runfiles
-
-    rows = summary_rows(out, settings, configs)
-    fields = list(settings[0])
-    md = ["# Sweep: final evaluation return per setting", "",
-          f"- {FINAL_DEFINITION}; ± is the standard deviation over seeds, CI the 95% t interval of the mean.",
-          "- **best**: the highest mean among finished settings with finite parameters.", "",
-          "| setting | " + " | ".join(f"`{f}`" for f in fields) + " | final return | 95% CI | seeds | |",
-          "|---|" + "---|" * len(fields) + "---|---|---|---|"]
-    for e in rows:
-        final = f"{fmt(e['mean'])} ± {fmt(e['std'])}" if "mean" in e else (
-            "non-finite parameters" if not e["finite"] else "not run" if not e.get("per_seed") else "n/a")
-        ci = f"[{fmt(e['ci95'][0])}, {fmt(e['ci95'][1])}]" if e.get("ci95") else ""
-        note = "**best**" if e.get("best") else ("incomplete" if e.get("per_seed") and not e["complete"] else "")
-        md.append(f"| {e['setting']} | " + " | ".join(e["values"][f] for f in fields) +
-                  f" | {final} | {ci} | {e['seeds']} | {note} |")
-    with open(os.path.join(out, "summary.md"), "w") as f:
-        f.write("\n".join(md) + "\n")
-    runfiles.write_json_atomic(os.path.join(out, "summary.json"), {"final_definition": FINAL_DEFINITION,
-                                                                    "settings": rows})
-    if plot:
-        from experiments.analysis.render.plots import plot_sweep
-
-        plot_sweep(rows, fields, os.path.join(out, "sweep.png"))
-    best = next((e for e in rows if e.get("best")), None)
-    print(f"summary: {out}/summary.md" + (f"; best: setting {best['setting']} "
-                                           f"({', '.join(f'{k}={v}' for k, v in best['values'].items())}): "
-                                           f"{fmt(best['mean'])} ± {fmt(best['std'])}" if best else ""), flush=True)
-    return rows
 
 
 if __name__ == "__main__":

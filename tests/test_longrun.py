@@ -16,6 +16,7 @@ from experiments import run
 from experiments.training.args import config_from_run_args
 from metapg_jax.host.driver import record_extension
 from metapg_jax import load_policy
+from metapg_jax.host import programs
 from metapg_jax.host.checkpoint import Checkpointer
 from tests import xla_flags
 from tests.helpers import TINY_BUFFER, TINY_RUN, assert_same_run, metrics_rows, policy_arrays, run_subprocess
@@ -45,7 +46,9 @@ def growing_reference(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_resume_continues_bit_for_bit_without_duplicate_metrics(reference, tmp_path):
+def test_resume_continues_bit_for_bit_without_duplicate_metrics(reference, tmp_path, capsys):
+    """The resume runs in this process, so it takes the program that the first call compiled
+    (metapg_jax.host.programs) and says so."""
     out = str(tmp_path / "run")
     assert run.main(TINY + ["--steps=900", "--out", out]) == 0
     # Drop the last checkpoint: the resumed run restarts after chunk 2 and redoes chunk 3.
@@ -53,7 +56,10 @@ def test_resume_continues_bit_for_bit_without_duplicate_metrics(reference, tmp_p
     assert ck.steps() == [2, 3]          # the last two are kept
     ck.manager.delete(3)
     ck.close()
+    capsys.readouterr()
     assert run.main(["--resume", out, "--quiet", "--no-plot"]) == 0
+    assert "(the program compiled earlier in this process; compile cache " in capsys.readouterr().out
+    assert json.load(open(os.path.join(out, "summary.json")))["program_reused"] is True
     assert_same_run(reference, out)
 
 
@@ -66,6 +72,7 @@ def test_a_run_loaded_from_the_compile_cache_equals_a_compiled_one(reference, tm
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0)  # store every program, fast machine or not
     try:
         for out in outs:
+            programs.forget()  # else the second run takes the first one's program from this process
             assert run.main(TINY + ["--steps=900", "--out", out, "--compile-cache", str(cache)]) == 0
             summaries.append(json.loads(open(os.path.join(out, "summary.json")).read()))
             assert f"(compile cache {cache}: " in capsys.readouterr().out

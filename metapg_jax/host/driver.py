@@ -18,7 +18,7 @@ import time
 from typing import Any, Callable, Iterable, Sequence
 
 from metapg_jax import config as config_lib
-from metapg_jax.host import compile_cache, metric_rows, runfiles
+from metapg_jax.host import compile_cache, metric_rows, programs, runfiles
 from metapg_jax.host.loggers import Logger, Loggers
 from metapg_jax.host.processes import barrier, to_host
 from metapg_jax.host.runner import TERM_GRACE, ChunkLoop, check_term_grace
@@ -103,7 +103,7 @@ def _train(chunk_loop: ChunkLoop, reports: Loggers, cfg: config_lib.Config, a: d
     from metapg_jax.host.checkpoint import Checkpointer
     from metapg_jax.loop import checkpoint_shapes
     from metapg_jax.seeds import SEED_AXIS
-    from metapg_jax.train import make_train, seed_keys, vmap_seeds
+    from metapg_jax.train import seed_keys, vmap_seeds
 
     num_seeds, seed = a["seeds"], a["seed"]
     main_process = jax.process_index() == 0
@@ -120,18 +120,24 @@ def _train(chunk_loop: ChunkLoop, reports: Loggers, cfg: config_lib.Config, a: d
         record_extension(out, cfg, a, extend_from)
     barrier("metapg-run-folder")  # process 0 has (re)made the folder before anyone writes into it
 
-    trainer = trainer or make_train(cfg)
+    # The config's own trainer (``trainer_for``) is kept with its programs for the process (``programs``): a second
+    # run of the config in this process traces nothing again. Another trainer (a caller's) compiles its own.
+    seeds_sharding = NamedSharding(Mesh(np.array(jax.devices()), (SEED_AXIS,)), PartitionSpec(SEED_AXIS))
+    own = trainer is None or trainer is programs.peek(programs.key("trainer", cfg))
+    trainer = trainer_for(cfg) if trainer is None else trainer
+    t0 = time.perf_counter()
+
+    def build_init():
+        return jax.jit(vmap_seeds(trainer.init), out_shardings=seeds_sharding)
+
+    init_fn = programs.kept(programs.key("init", cfg), build_init)[0] if own else build_init()
     keys = seed_keys(seed, num_seeds)
     print(f"{label} ({cfg.preset} preset, {cfg.env.source} source, {physics_label(cfg)} physics): {num_seeds} seeds x "
           f"{cfg.run.total_steps:,} env steps, {cfg.num_chunks} evaluations every {cfg.run.eval_every:,} steps "
           f"({cfg.cycles_per_chunk} cycles of {cfg.steps_per_cycle} steps) on {jax.device_count()} "
           f"{jax.default_backend()} device(s); output {out}", flush=True)
 
-    # The seed axis is sharded over all devices (a no-op with one device).
-    seeds_sharding = NamedSharding(Mesh(np.array(jax.devices()), (SEED_AXIS,)), PartitionSpec(SEED_AXIS))
     cache, cache_before = compile_cache.current(), compile_cache.counts()
-    t0 = time.perf_counter()
-    init_fn = jax.jit(vmap_seeds(trainer.init), out_shardings=seeds_sharding)
     checkpointer = chunk_loop.keep(Checkpointer(os.path.join(out, "checkpoints")))
     start = 0
     if resume:
@@ -153,11 +159,22 @@ def _train(chunk_loop: ChunkLoop, reports: Loggers, cfg: config_lib.Config, a: d
               flush=True)
     else:
         state = init_fn(keys)
-    chunk_fn = jax.jit(vmap_seeds(trainer.train_chunk), in_shardings=seeds_sharding,
-                       out_shardings=seeds_sharding, donate_argnums=0).lower(state).compile()
+
+    def compile_chunk():
+        return jax.jit(vmap_seeds(trainer.train_chunk), in_shardings=seeds_sharding, out_shardings=seeds_sharding,
+                       donate_argnums=0).lower(state).compile()
+
+    reused = False
+    if own:
+        chunk_fn, reused = programs.kept(programs.key("chunk", cfg, programs.shapes(state)), compile_chunk)
+    else:
+        chunk_fn = compile_chunk()
     compile_s = time.perf_counter() - t0
     buffer_mb = num_seeds * replay.nbytes(jax.tree.map(lambda x: x[0], state.buffer)) / 2**20
     cache_note, cache_record = compile_cache.describe(cache, cache_before, compile_cache.counts())
+    if reused:
+        cache_note, cache_record = f"the program compiled earlier in this process; {cache_note}", {
+            **cache_record, "program_reused": True}
     print(f"compiled in {compile_s:.1f} s ({cache_note}); replay buffers {buffer_mb:,.0f} MiB", flush=True)
 
     reports.start(cfg, a, out, start)  # (a no-op on the other processes: their reports hold no logger)
@@ -200,6 +217,14 @@ def _train(chunk_loop: ChunkLoop, reports: Loggers, cfg: config_lib.Config, a: d
         **({"extended_from_steps": extend_from} if extend_from else {})}
     reports.finish(finalize(state, record) if finalize is not None else record)
     return 0
+
+
+def trainer_for(cfg: config_lib.Config) -> Any:
+    """``metapg_jax.train.make_train(cfg)``, kept for the process (``programs``): a driver run of ``cfg`` given this
+    trainer (or none) reuses the programs an earlier run of ``cfg`` in this process compiled."""
+    from metapg_jax.train import make_train
+
+    return programs.kept(programs.key("trainer", cfg), lambda: make_train(cfg))[0]
 
 
 class Recorder:

@@ -104,7 +104,7 @@ def plot_meta_rewards(panels: dict[tuple[str, str], dict[str, list[dict]]], path
 
 
 def plot_sweep(rows: list[dict], fields: list[str], path: str) -> None:
-    """A sweep's final return per setting (``experiments.sweep.summary_rows``): the mean with its 95% CI, the best
+    """A sweep's final return per setting (``experiments.analysis.sweeps.summary_rows``): the mean with its 95% CI, the best
     setting starred, each setting labelled by its values of the swept ``fields``; nothing for no finished setting."""
     from experiments.analysis.render.figures import pyplot
 

@@ -1,0 +1,72 @@
+"""The seed rule and the "exploration matters" figure (experiments/analysis/power.py), on fabricated numbers."""
+
+import math
+
+import numpy as np
+import pytest
+from scipy import stats as scipy_stats
+
+from experiments.analysis import power
+
+
+def test_ten_seeds_detect_1_3_std_uncorrected_and_2_1_std_after_holm_over_36():
+    # Cohen's tables: d = 1.32 at n = 10 per group, two-sided alpha 0.05, power 0.80.
+    assert power.detectable_effect(10) == pytest.approx(1.3249, abs=2e-3)
+    # A family of 36 comparisons: its first Holm step tests at 0.05 / 36.
+    assert power.detectable_effect(10, comparisons=36) == pytest.approx(2.108, abs=2e-3)
+    assert power.power(10, power.detectable_effect(10, 36), 36) == pytest.approx(0.8, abs=1e-6)
+
+
+@pytest.mark.parametrize("n,effect,comparisons", [(3, 2.0, 36), (10, 1.0, 1), (10, 2.0, 36), (100, 0.3, 36),
+                                                  (300, 0.3, 36)])
+def test_power_is_the_noncentral_t_tails(n, effect, comparisons):
+    df, shift = 2 * (n - 1), effect / math.sqrt(2 / n)
+    crit = scipy_stats.t.ppf(1 - 0.05 / comparisons / 2, df)
+    expected = scipy_stats.nct.sf(crit, df, shift) + scipy_stats.nct.cdf(-crit, df, shift)
+    assert power.power(n, effect, comparisons) == pytest.approx(expected, rel=1e-8, abs=1e-12)
+    assert power.power(n, 30.0, comparisons) == pytest.approx(1.0)  # where scipy's nct gives NaN
+
+
+def test_power_agrees_with_a_simulation_of_t_tests():
+    rng = np.random.default_rng(0)
+    n, effect, comparisons, reps = 8, 1.5, 4, 20_000
+    a = rng.normal(0.0, 1.0, (reps, n))
+    b = rng.normal(effect, 1.0, (reps, n))
+    p = scipy_stats.ttest_ind(a, b, axis=1).pvalue
+    simulated = float(np.mean(p < 0.05 / comparisons))
+    assert power.power(n, effect, comparisons) == pytest.approx(simulated, abs=0.01)  # MC std ~0.0035
+
+
+def test_the_seed_rule_takes_the_fewest_seeds_with_the_power_and_never_fewer_than_the_minimum():
+    # A tenth of a range of 1,000 (delta 100) at a seed std of 120: effect 0.83 std, 36 comparisons.
+    n = power.seeds_for(120.0, 100.0, comparisons=36)
+    assert power.power(n, 100 / 120, 36) >= 0.8 > power.power(n - 1, 100 / 120, 36)
+    assert n > 10
+    assert power.seeds_for(10.0, 100.0, comparisons=36) == 10      # a large effect: the minimum holds
+    assert power.seeds_for(0.0, 100.0) == 10
+    assert power.seeds_for(10.0, 100.0, minimum=3) == 3              # 10 std: three seeds already detect it
+    with pytest.raises(ValueError, match="needs more than 50 seeds"):
+        power.seeds_for(1000.0, 10.0, maximum=50)
+    for bad in ((-1.0, 1.0), (1.0, 0.0), (math.nan, 1.0)):
+        with pytest.raises(ValueError, match="std must be >= 0 and delta > 0"):
+            power.seeds_for(*bad)
+    with pytest.raises(ValueError, match="comparisons must be a whole number"):
+        power.seeds_for(1.0, 1.0, comparisons=0)
+
+
+def test_exploration_matters_is_the_spread_of_entry_means_over_the_pooled_seed_std():
+    grid = {"gaussian": [0.0, 2.0, 4.0],     # mean 2, variance 4
+            "ou": [5.0, 6.0, 7.0],           # mean 6, variance 1
+            "pink": [10.0, 12.0]}            # mean 11, variance 2
+    out = power.exploration_matters(grid)
+    pooled = math.sqrt((4 * 2 + 1 * 2 + 2 * 1) / 5)
+    assert out["best"] == "pink" and out["worst"] == "gaussian"
+    assert out["spread"] == pytest.approx(9.0)
+    assert out["pooled_std"] == pytest.approx(pooled)
+    assert out["figure"] == pytest.approx(9.0 / pooled)
+    assert power.exploration_matters({"a": [1.0, 1.0], "b": [1.0, 1.0]})["figure"] == 0.0
+    assert power.exploration_matters({"a": [1.0, 1.0], "b": [2.0, 2.0]})["figure"] == math.inf
+    with pytest.raises(ValueError, match="at least two entries"):
+        power.exploration_matters({"a": [1.0, 2.0]})
+    with pytest.raises(ValueError, match="no entry has two seeds"):
+        power.pooled_std([[1.0], [2.0]])
