@@ -49,6 +49,7 @@ CASES = {
     "pendulum-meta-residual": ("pendulum", "meta", "paper", None, "residual", "mjx"),
     "pendulum-meta-bandit": ("pendulum", "meta", "paper", None, "bandit", "mjx"),
     "pendulum-meta-uniform": ("pendulum", "meta", "paper", None, "uniform", "mjx"),
+    "pendulum-random-td3": ("pendulum", "random", "paper", None, None, "mjx", "td3"),
 }
 
 

@@ -36,7 +36,7 @@ def test_a_registered_explorer_trains_without_touching_the_loop(monkeypatch):
 
 def test_an_unknown_method_or_student_is_refused_naming_the_registered_ones():
     cfg = tiny_config("ddpg")
-    with pytest.raises(ValueError, match=r"unknown method 'nope'; valid methods: ddpg, meta, own$"):
+    with pytest.raises(ValueError, match=r"unknown method 'nope'; valid methods: ddpg, meta, own, random$"):
         make_train(dataclasses.replace(cfg, run=dataclasses.replace(cfg.run, method="nope")))
     with pytest.raises(ValueError, match=r"unknown student 'nope'; valid students: ddpg, sac, td3$"):
         config_lib.make_config("pendulum", student="nope")
@@ -244,3 +244,21 @@ def test_the_reserved_group_names_are_the_configs_own_names():
     other way round; it must stay every field and public attribute of Config."""
     names = {n for n in dir(config_lib.Config) if not n.startswith("_")}
     assert strategy.RESERVED == names | {f.name for f in dataclasses.fields(config_lib.Config)}
+
+
+def test_the_random_explorer_ignores_the_policy_and_draws_uniform_actions():
+    """``--method=random`` (metapg_jax/strategies/random_actions.py): the same key gives the same action whatever
+    the student's parameters, and the actions fill [-1, 1]^d uniformly (while the student trains: its golden
+    case, tests/golden.py)."""
+    trainer = make_train(tiny_config("random"))
+    one, two = (trainer.student.init(jax.random.PRNGKey(k)) for k in (0, 1))
+    keys = jax.random.split(jax.random.PRNGKey(3), 4000)
+    obs = np.zeros(trainer.env.observation_size, np.float32)
+
+    def actions(student):
+        return jax.vmap(lambda k: trainer.explorer.act(trainer, (), student, None, obs, k)[0])(keys)
+
+    a = np.asarray(actions(one))
+    np.testing.assert_array_equal(a, np.asarray(actions(two)))
+    assert a.shape == (4000, trainer.env.action_size) and a.min() >= -1.0 and a.max() <= 1.0
+    assert abs(a.mean()) < 0.05 and abs(a.var() - 1 / 3) < 0.03   # U(-1, 1): mean 0, variance 1/3

@@ -60,6 +60,9 @@ METHODS = {
     "control-uniform": method("meta", *PAIRED_CYCLE, preset="tuned", teacher="uniform"),
     "control-fixed": method("meta", "bandit.scales=0.1", *PAIRED_CYCLE, preset="tuned", teacher="bandit"),
     "control-noiseless": method("meta", "bandit.scales=0", *PAIRED_CYCLE, preset="tuned", teacher="bandit"),
+    # Uniformly random actions while TD3 trains (--method=random): how much any directed exploration matters on a
+    # task (the benchmark of the hard tasks' control).
+    "td3-random": method("random"),
 }
 # The grid methods that run under a preset of their own, overriding the grid's (``CellSpec.run_preset``).
 METHOD_PRESETS = {name: m.preset for name, m in METHODS.items() if m.preset}
@@ -71,7 +74,7 @@ METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta
                 "sac-meta": "SAC + Meta (independent)", "learned-paired": "Meta (paired reward)",
                 "learned-residual": "residual teacher", "learned-bandit": "bandit over noise scales",
                 "control-frozen": "control: frozen teacher", "control-uniform": "control: uniform D0", "control-fixed": "control: D0 with noise 0.1",
-                "control-noiseless": "control: noiseless D0"}
+                "control-noiseless": "control: noiseless D0", "td3-random": "TD3 (uniformly random actions)"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
 # for the modern preset its own exploration (Gaussian action noise 0.1, see metapg_jax/strategies/noise.py); the tuned
@@ -95,11 +98,12 @@ GAUSSIAN = {"ddpg": "ddpg-normal", **STUDENT_BASELINES}
 STRATEGIES = {"td3": ("td3-normal", "td3-ou", "td3-paramnoise", "td3-pink", "td3-mixed", "meta-independent",
                       "meta-tuned"),
               "sac": ("sac-own", "sac-pink", "sac-meta")}
-# Learned exploration, second attempt (results/learned/README.md): each student's teacher designs and their controls,
-# entries of the benchmark only when named (``experiments.benchmark --strategies``), never in its default plan.
+# Entries of the benchmark only when named (``experiments.benchmark --strategies``), never in its default plan: each
+# student's learned-exploration variants and their controls (results/learned/README.md, second attempt), and TD3
+# with uniformly random actions (a control for the hard tasks).
 LEARNED_METHODS = ("learned-paired", "learned-residual", "learned-bandit", "control-frozen", "control-uniform",
                    "control-fixed", "control-noiseless")
-LEARNED = {"td3": LEARNED_METHODS, "sac": LEARNED_METHODS}
+LEARNED = {"td3": (*LEARNED_METHODS, "td3-random"), "sac": LEARNED_METHODS}
 # The student of a grid method that only one student's grid or strategies have (the others: DDPG's).
 STUDENT_OF = {m: student for table in (GRIDS, STRATEGIES) for student, methods in table.items() if student != "ddpg"
               for m in methods if m not in GRIDS["ddpg"]}
