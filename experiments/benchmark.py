@@ -45,6 +45,7 @@ resume).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import re
 import sys
@@ -54,7 +55,7 @@ from experiments import reproduce
 from experiments.analysis import benchmark as artefacts
 from experiments.analysis.render import benchmark as bench_report
 from experiments.grid import methods as grid
-from experiments.grid.methods import (LEARNED, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, baseline_for,
+from experiments.grid.methods import (NAMED_ONLY, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, baseline_for,
                                     task_folder)
 from experiments.grid import engine
 from experiments.grid.cli import add_grid_options, check_grid_options, grid_run, grid_spec
@@ -70,11 +71,12 @@ DEFAULT_STEPS = 300_000
 
 def build_parser() -> argparse.ArgumentParser:
     strategies = "; ".join(f"{s}: {', '.join(m)}" for s, m in STRATEGIES.items())
-    learned = "; ".join(f"{s}: {', '.join(m)}" for s, m in LEARNED.items())
+    learned = "; ".join(f"{s}: {', '.join(m)}" for s, m in NAMED_ONLY.items())
     p = argparse.ArgumentParser(prog="python -m experiments.benchmark", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--tasks", default=",".join(grid.tasks()),
-                   help=f"comma-separated tasks, {', '.join(envs.TASKS)} or gym:<Id> (default: the paper's six)")
+                   help=f"comma-separated tasks, {', '.join(envs.TASKS)}, gym:<Id> or dmc:<domain>-<task> (default: "
+                        "the paper's six)")
     p.add_argument("--students", default=",".join(DEFAULT_STUDENTS),
                    help=f"comma-separated students (default {','.join(DEFAULT_STUDENTS)})")
     p.add_argument("--strategies", default=None,
@@ -87,6 +89,14 @@ def build_parser() -> argparse.ArgumentParser:
                         "and probability of improvement against it (default: its Gaussian noise, "
                         + ", ".join(f"{s}={m}" for s, m in STUDENT_BASELINES.items()) + ")")
     p.add_argument("--name", default=DEFAULT_NAME, help=f"the benchmark's name (default {DEFAULT_NAME}): its folders")
+    p.add_argument("--task-steps", action="append", default=[], metavar="TASK=STEPS",
+                   help="a task's own budget, env steps per seed, instead of --steps (repeatable, or comma-separated)")
+    p.add_argument("--task-seeds", action="append", default=[], metavar="TASK=SEEDS",
+                   help="a task's own seed count, instead of --seeds (repeatable, or comma-separated): e.g. the "
+                        "counts a pilot's spread asks for (experiments.analysis.power.seeds_for)")
+    p.add_argument("--task-set", action="append", default=[], metavar="TASK:GROUP.FIELD=VALUE",
+                   help="a config override of one task's cells, after --set's (repeatable, one override each): e.g. its "
+                        "evaluation interval, dmc:reacher-hard:run.eval_every=5000")
     add_grid_options(p, seeds=DEFAULT_SEEDS, seed=DEFAULT_SEED, steps=DEFAULT_STEPS, physics="mujoco",
                      steps_help=f"env steps per seed of every cell (default {DEFAULT_STEPS:,})",
                      physics_help="engine of the MuJoCo tasks (default mujoco, MuJoCo's C engine; gym: tasks need it)",
@@ -100,14 +110,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def parse_tasks(text: str) -> list[str]:
-    """The ``--tasks`` list: built-in tasks or ``gym:<Id>`` tasks (``envs.get_spec`` checks them), each once."""
+    """The ``--tasks`` list: built-in, ``gym:<Id>`` and ``dmc:<domain>-<task>`` tasks (``envs.get_spec`` checks
+    them), each once."""
 
     tasks = [t.strip() for t in re.split(r",(?![^()]*\))", text) if t.strip()]  # commas inside gym:Id(...) stay
     if not tasks:
         raise ValueError("--tasks names no task")
     for t in tasks:
-        if t not in envs.TASKS and not envs.is_gym_task(t):
-            raise ValueError(f"unknown task {t!r}; valid tasks: {', '.join(envs.TASKS)}, or gym:<Id>")
+        if t not in envs.TASKS and not envs.is_gym_task(t) and not envs.is_dmc_task(t):
+            raise ValueError(f"unknown task {t!r}; valid tasks: {', '.join(envs.TASKS)}, gym:<Id> or "
+                             f"dmc:<domain>-<task>")
         envs.get_spec(t)
     if len(set(tasks)) != len(tasks) or len({task_folder(t) for t in tasks}) != len(tasks):
         raise ValueError("--tasks lists a task twice")
@@ -127,12 +139,57 @@ def parse_baselines(items: list[str]) -> dict[str, str]:
     return out
 
 
+def _task_items(items: list[str], option: str, usage: str, split, commas: bool = True) -> list[tuple[str, str]]:
+    """(task, value) of each item of a per-task option, comma-separated if ``commas`` (commas inside a gym: task's
+    arguments stay), ``split(item) -> (task, separator found, value)``; ``ValueError`` (one line) for a malformed
+    one."""
+    out = []
+    for item in (x.strip() for i in items for x in (re.split(r",(?![^()]*\))", i) if commas else [i]) if x.strip()):
+        task, found, value = split(item)
+        if not found or not task.strip() or not value.strip():
+            raise ValueError(f"{option} expects {usage}, got {item!r}")
+        out.append((task.strip(), value.strip()))
+    return out
+
+
+def _split_set(item: str) -> tuple[str, str, str]:
+    """'TASK:GROUP.FIELD=VALUE' -> (TASK, ':', GROUP.FIELD=VALUE); the task's own colons (dmc:..., gym:...) stay."""
+    m = re.fullmatch(r"(.+):([A-Za-z_]\w*\.[A-Za-z_]\w*=.*)", item)
+    return (m.group(1), ":", m.group(2)) if m else (item, "", "")
+
+
+def task_settings(a: argparse.Namespace, tasks: list[str]) -> dict[str, dict]:
+    """{task: {"steps", "seeds", "overrides"}} from ``--task-steps``, ``--task-seeds`` and ``--task-set``: each task's
+    budget, seed count and overrides (``--steps``, ``--seeds`` and ``--set`` where it has none of its own).
+    ``ValueError`` (one line) for a task not in ``--tasks``, a task named twice, a bad count or override."""
+    from experiments.training import args as training_args
+
+    out = {t: {"steps": a.steps, "seeds": a.seeds, "overrides": tuple(a.overrides)} for t in tasks}
+    for option, items, key in (("--task-steps", a.task_steps, "steps"), ("--task-seeds", a.task_seeds, "seeds")):
+        seen = set()
+        for task, value in _task_items(items, option, "TASK=N", lambda item: item.rpartition("=")):
+            if task not in out:
+                raise ValueError(f"{option} names {task!r}, which is not one of --tasks ({', '.join(tasks)})")
+            if task in seen:
+                raise ValueError(f"{option} names {task!r} twice")
+            seen.add(task)
+            if not value.isdigit() or int(value) <= 0:
+                raise ValueError(f"{option} {task}={value}: a positive whole number is needed")
+            out[task][key] = int(value)
+    for task, item in _task_items(a.task_set, "--task-set", "TASK:GROUP.FIELD=VALUE", _split_set, commas=False):
+        if task not in out:
+            raise ValueError(f"--task-set names {task!r}, which is not one of --tasks ({', '.join(tasks)})")
+        training_args.parse_overrides([item])
+        out[task]["overrides"] += (item,)
+    return out
+
+
 def entries(a: argparse.Namespace) -> list[artefacts.Entry]:
     students = reproduce.parse_list(a.students, tuple(STRATEGIES), "student")
     baselines = parse_baselines(a.baseline)
     if a.strategies is None:
         return artefacts.entries_for(students, baselines=baselines)
-    valid = tuple(dict.fromkeys(m for s in students for m in (*STRATEGIES[s], *LEARNED.get(s, ()))))
+    valid = tuple(dict.fromkeys(m for s in students for m in (*STRATEGIES[s], *NAMED_ONLY.get(s, ()))))
     return artefacts.entries_for(students, reproduce.parse_list(a.strategies, valid, "strategy"), baselines)
 
 
@@ -152,8 +209,10 @@ def plan(a: argparse.Namespace) -> tuple[list[str], list[artefacts.Entry], list[
         runs, results = artefacts.student_dirs(a.runs_dir, a.results_dir, student)
         grids[student] = (grid_run(a, runs, results, artefacts.PRESET, baseline_for(artefacts.PRESET, student)),
                           grid_spec(a, artefacts.PRESET, student))
-    cells = [grid_cells.grid_cell(*grids[e.student], t, e.method, key=(e.student, t, e.method),
-                                  tag=f"{e.student}/{t}/{e.method}") for t in tasks for e in chosen]
+    per_task = task_settings(a, tasks)
+    cells = [grid_cells.grid_cell(grids[e.student][0], dataclasses.replace(grids[e.student][1], **per_task[t]), t,
+                                  e.method, key=(e.student, t, e.method), tag=f"{e.student}/{t}/{e.method}")
+             for t in tasks for e in chosen]
     if not a.artefacts_only:
         # A budget that one strategy's cycle does not divide, a bad --set or a task the engine cannot step stops the
         # benchmark here, before the first cell trains.
@@ -177,15 +236,21 @@ def grid_plan(a: argparse.Namespace, argv: list[str]) -> engine.GridPlan:
     tasks, chosen, cells = plan(a)
     per = ", ".join(f"{STUDENT_NAMES.get(s, s)}: {sum(e.student == s for e in chosen)}"
                     for s in dict.fromkeys(e.student for e in chosen))
+    # Each task's own budget, seeds and overrides where it has them (--task-steps, --task-seeds, --task-set).
+    own = {t: {"steps": d["steps"], "seeds": d["seeds"], "overrides": list(d["overrides"][len(a.overrides):])}
+           for t, d in task_settings(a, tasks).items()
+           if (d["steps"], d["seeds"], d["overrides"]) != (a.steps, a.seeds, tuple(a.overrides))}
     banner = (f"exploration benchmark {a.name!r}: {len(tasks)} tasks x {len(chosen)} entries ({per}) = {len(cells)} "
-              f"cells of {a.seeds} seeds, {a.steps:,} env steps per seed, {a.physics} physics, base seed {a.seed}; "
-              f"cells in {a.runs_dir}/<student>/{artefacts.PRESET}/<task>/<method>, results in {a.results_dir}")
+              f"cells of {a.seeds} seeds, {a.steps:,} env steps per seed, {a.physics} physics, base seed {a.seed}"
+              + "".join(f"; {t}: {d['seeds']} seeds, {d['steps']:,} steps" + "".join(f", {x}" for x in d["overrides"])
+                        for t, d in own.items())
+              + f"; cells in {a.runs_dir}/<student>/{artefacts.PRESET}/<task>/<method>, results in {a.results_dir}")
 
     def report(wall_seconds: float) -> None:
         options = {"name": a.name, "students": list(dict.fromkeys(e.student for e in chosen)),
                    "strategies": [e.key for e in chosen], "baselines": artefacts.baselines_of(chosen),
                    "seeds": a.seeds, "seed": a.seed, "steps": a.steps, "physics": a.physics,
-                   "overrides": a.overrides, "argv": argv}
+                   "overrides": a.overrides, **({"task_settings": own} if own else {}), "argv": argv}
         manifest = bench_report.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
                                       extra_provenance={"benchmark_wall_seconds": wall_seconds})
         print(f"artefacts: {len(manifest['files'])} files in {a.results_dir} ({len(manifest['cells'])} stored cells, "

@@ -41,7 +41,15 @@ def test_bad_input_is_one_error_line_before_anything_runs(tmp_path, capsys, monk
                        (["--baseline", "td3"], "--baseline expects STUDENT=STRATEGY, got 'td3'"),
                        (["--baseline", "td3=sac-pink"], "baseline td3=sac-pink: 'sac-pink' is not a strategy of td3"),
                        (["--students", "td3", "--baseline", "sac=sac-own"], "'sac' is not one of the planned students"),
-                       (["--baseline", "td3=td3-pink,td3=td3-ou"], "names student 'td3' twice")):
+                       (["--baseline", "td3=td3-pink,td3=td3-ou"], "names student 'td3' twice"),
+                       (["--task-steps", "pendulum"], "--task-steps expects TASK=N, got 'pendulum'"),
+                       (["--task-seeds", "hopper=0"], "--task-seeds hopper=0: a positive whole number is needed"),
+                       (["--tasks", "pendulum", "--task-steps", "hopper=9000"],
+                        "--task-steps names 'hopper', which is not one of --tasks (pendulum)"),
+                       (["--task-seeds", "hopper=3,hopper=4"], "--task-seeds names 'hopper' twice"),
+                       (["--task-set", "hopper=run.eval_every=1"], "--task-set expects TASK:GROUP.FIELD=VALUE"),
+                       (["--tasks", "pendulum", "--task-set", "pendulum:ddpg.nope=1"],
+                        "td3/pendulum/td3-normal: unknown config field")):
         assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 2, argv
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("error: ") and said in err[0], (argv, err)
@@ -75,6 +83,31 @@ def test_the_default_plan_and_a_gym_task(tmp_path, capsys, monkeypatch):
     assert "--env=gym:InvertedPendulum-v5" in cell and cell.endswith("sac/paper/gym-InvertedPendulum-v5/sac-own")
     assert grid.task_folder("gym:Ant-v5(ctrl_cost_weight=0.1)") == "gym-Ant-v5-ctrl_cost_weight=0.1"
     assert grid.task_name("gym:Walker2d-v5") == "Walker2d-v5" and grid.task_name("hopper") == "Hopper"
+
+
+def test_a_task_can_have_its_own_budget_seeds_and_overrides(tmp_path, capsys, monkeypatch):
+    """--task-steps, --task-seeds and --task-set (the hard tasks' benchmark: budgets as the literature uses them,
+    seeds by power, evaluations often enough): the task's cells get them, the others keep --steps, --seeds and
+    --set; the banner and the manifest's plan say so; TD3 with uniformly random actions is an entry when named."""
+    monkeypatch.chdir(tmp_path)
+    argv = ["--tasks", "pendulum,dmc:cartpole-swingup_sparse", "--students", "td3", "--strategies", "td3-random",
+            "--seeds", "3", "--steps", "9000", "--task-steps", "dmc:cartpole-swingup_sparse=18000",
+            "--task-seeds", "dmc:cartpole-swingup_sparse=5", "--task-set", "dmc:cartpole-swingup_sparse:run.eval_every=3000"]
+    a = benchmark.build_parser().parse_args(argv)
+    tasks, chosen, cells = benchmark.plan(a)      # every cell's config validated
+    assert [e.method for e in chosen] == ["td3-normal", "td3-random"]
+    by = {(c.task, c.name): c.spec for c in cells}
+    for method in ("td3-normal", "td3-random"):
+        pend, cart = by[("pendulum", method)], by[("dmc:cartpole-swingup_sparse", method)]
+        assert (pend.steps, pend.seeds, pend.overrides) == (9000, 3, ())
+        assert (cart.steps, cart.seeds, cart.overrides) == (18000, 5, ("run.eval_every=3000",))
+        assert (cart.config().run.eval_every, cart.config().num_chunks) == (3000, 6)
+    assert by[("pendulum", "td3-random")].config().run.method == "random"
+    assert benchmark.main(argv + ["--dry-run", "--no-calibrate"]) == 0
+    banner = capsys.readouterr().out.splitlines()[0]
+    assert banner.startswith("exploration benchmark 'exploration': 2 tasks x 2 entries (TD3: 2) = 4 cells of 3 seeds, "
+                             "9,000 env steps per seed, mujoco physics, base seed 1000; dmc:cartpole-swingup_sparse: "
+                             "5 seeds, 18,000 steps, run.eval_every=3000; cells in "), banner
 
 
 def test_the_learned_variants_are_entries_only_when_named_and_share_one_cycle_on_every_task(tmp_path, monkeypatch):

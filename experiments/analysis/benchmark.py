@@ -26,7 +26,7 @@ from typing import Sequence
 import numpy as np
 
 from experiments.analysis import cells, stats, tables
-from experiments.grid.methods import (LEARNED, METHOD_NAMES, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, noise_methods,
+from experiments.grid.methods import (METHOD_NAMES, NAMED_ONLY, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, noise_methods,
                                     task_folder)
 
 # The preset of every student's grid (a grid method with a preset of its own, the tuned teacher, keeps it).
@@ -75,7 +75,7 @@ class Entry:
 
 def entries_for(students: Sequence[str], strategies: Sequence[str] | None = None,
                 baselines: dict[str, str] | None = None) -> list[Entry]:
-    """The entries of ``students`` (``STRATEGIES`` order, then ``LEARNED``'s), restricted to ``strategies`` (grid
+    """The entries of ``students`` (``STRATEGIES`` order, then ``NAMED_ONLY``'s), restricted to ``strategies`` (grid
     methods) when given, else ``STRATEGIES``' only. Each student's baseline is always one of them (every other
     entry is judged against it): ``baselines[student]`` where given (a reference chosen in advance, e.g. the best
     fixed noise of an earlier benchmark), else its Gaussian noise. ``ValueError`` for a baseline that is not one of
@@ -84,14 +84,14 @@ def entries_for(students: Sequence[str], strategies: Sequence[str] | None = None
     for s, m in baselines.items():
         if s not in students:
             raise ValueError(f"baseline {s}={m}: {s!r} is not one of the planned students ({', '.join(students)})")
-        if m not in (*STRATEGIES[s], *LEARNED.get(s, ())):
+        if m not in (*STRATEGIES[s], *NAMED_ONLY.get(s, ())):
             raise ValueError(f"baseline {s}={m}: {m!r} is not a strategy of {s}; valid: "
-                             + ", ".join((*STRATEGIES[s], *LEARNED.get(s, ()))))
+                             + ", ".join((*STRATEGIES[s], *NAMED_ONLY.get(s, ()))))
     out = []
     for s in students:
         base = baselines.get(s, STUDENT_BASELINES[s])
         chosen = [m for m in STRATEGIES[s] if strategies is None or m in strategies or m == base]
-        chosen += [m for m in LEARNED.get(s, ()) if strategies is not None and m in strategies or m == base]
+        chosen += [m for m in NAMED_ONLY.get(s, ()) if strategies is not None and m in strategies or m == base]
         out += [Entry(s, m, base) for m in chosen]
     return out
 

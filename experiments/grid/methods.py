@@ -98,12 +98,13 @@ GAUSSIAN = {"ddpg": "ddpg-normal", **STUDENT_BASELINES}
 STRATEGIES = {"td3": ("td3-normal", "td3-ou", "td3-paramnoise", "td3-pink", "td3-mixed", "meta-independent",
                       "meta-tuned"),
               "sac": ("sac-own", "sac-pink", "sac-meta")}
-# Entries of the benchmark only when named (``experiments.benchmark --strategies``), never in its default plan: each
-# student's learned-exploration variants and their controls (results/learned/README.md, second attempt), and TD3
-# with uniformly random actions (a control for the hard tasks).
+# Each student's learned-exploration variants and their controls (results/learned/README.md, second attempt).
 LEARNED_METHODS = ("learned-paired", "learned-residual", "learned-bandit", "control-frozen", "control-uniform",
                    "control-fixed", "control-noiseless")
-LEARNED = {"td3": (*LEARNED_METHODS, "td3-random"), "sac": LEARNED_METHODS}
+LEARNED = {"td3": LEARNED_METHODS, "sac": LEARNED_METHODS}
+# Entries of the benchmark only when named (``experiments.benchmark --strategies``), never in its default plan: the
+# learned variants, and TD3 with uniformly random actions (a control for the hard tasks).
+NAMED_ONLY = {"td3": (*LEARNED_METHODS, "td3-random"), "sac": LEARNED_METHODS}
 # The student of a grid method that only one student's grid or strategies have (the others: DDPG's).
 STUDENT_OF = {m: student for table in (GRIDS, STRATEGIES) for student, methods in table.items() if student != "ddpg"
               for m in methods if m not in GRIDS["ddpg"]}

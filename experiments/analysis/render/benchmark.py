@@ -219,6 +219,9 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
     interval = lambda v: f"{stats.fmt(v['point'], 2)} [{stats.fmt(v['lo'], 2)}, {stats.fmt(v['hi'], 2)}]"
     done = sum(c["complete"] for c in manifest["cells"])
     budget = "each task's paper budget" if plan.get("steps") is None else f"{plan['steps']:,} env steps per seed"
+    own = plan.get("task_settings") or {}  # the tasks with a budget, seed count or overrides of their own
+    budget += "".join(f" ({task_name(t)}: {d['seeds']} seeds, {d['steps']:,} env steps per seed"
+                      + "".join(f", `{x}`" for x in d["overrides"]) + ")" for t, d in own.items())
     lines = [f"# Exploration benchmark `{plan['name']}`: which exploration for an off-policy learner, and by how "
              "much does it matter?", "",
              f"Every student ({', '.join(STUDENT_NAMES.get(s, s) for s in plan['students'])}) with each of its "
