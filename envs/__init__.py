@@ -76,6 +76,10 @@ class TaskSpec:
     mujoco: bool = True                   # stepped by MuJoCo (MJX or the C engine); False: a JAX task
     meta_schedule: MetaSchedule | None = None   # the paper's own cycle for the task; None: Algorithm 1's defaults
     table2: Table2Row | None = None       # the paper's Table 2 numbers; None: a task the paper did not run
+    # The normalised score's 1 where the task fixes one (experiments.normalisation): the most an episode can
+    # return, or the return that counts as solved; None: a reference grid's cell supplies it (Table 2's tasks).
+    reference_return: float | None = None
+    reference: str = ""                   # what that 1 is, in words
 
 
 # The paper's longer cycle (section 5.1: Half-Cheetah and Inverted Pendulum "need more explore rollout steps
@@ -109,10 +113,13 @@ TASKS: dict[str, TaskSpec] = {
         entry_point="envs.gym_mujoco:Reacher", brax_name="reacher",
         table2=Table2Row(6, meta=(-12.16, 1.19), ddpg=(-11.67, 3.39))),
     # Not in the paper: a sparse reward, where exploration decides the outcome (envs/mountain_car.py). No paper
-    # budget: 60k steps (60 episodes' worth at the time limit), evaluated every 3k (20 evaluations).
+    # budget: 60k steps (60 episodes' worth at the time limit), evaluated every 3k (20 evaluations). Its
+    # normalised 1 is gymnasium's solved threshold (the spec's reward_threshold, 90): reaching the flag pays 100
+    # less the actions' cost, so a solving episode returns a little under 100.
     "mountain_car_continuous": TaskSpec(
         "MountainCarContinuous-v0", 999, 60_000, eval_every=3_000, display_name="MountainCarContinuous",
-        entry_point="envs.mountain_car:MountainCarContinuous", mujoco=False),
+        entry_point="envs.mountain_car:MountainCarContinuous", mujoco=False, reference_return=90.0,
+        reference="gymnasium's solved threshold (reward_threshold of MountainCarContinuous-v0)"),
 }
 # The task a config names when none is given (``metapg_jax.config.make_config``, ``experiments.run``).
 DEFAULT_TASK = "pendulum"

@@ -91,4 +91,7 @@ def task_spec(name: str) -> TaskSpec:
     domain, task = parse_name(name)
     require_dm_control(name)
     return TaskSpec(f"{domain}-{task}", EPISODE_LENGTH, DEFAULT_BUDGET, eval_every=EVAL_EVERY,
-                    display_name=name[len("dmc:"):], entry_point=TASKS[f"{domain}-{task}"][0])
+                    display_name=name[len("dmc:"):], entry_point=TASKS[f"{domain}-{task}"][0],
+                    reference_return=float(EPISODE_LENGTH),
+                    reference=f"the suite's maximum: a reward of at most 1 per step over the {EPISODE_LENGTH:,}-step "
+                              f"episode")

@@ -89,14 +89,18 @@ def build_parser() -> argparse.ArgumentParser:
                         "and probability of improvement against it (default: its Gaussian noise, "
                         + ", ".join(f"{s}={m}" for s, m in STUDENT_BASELINES.items()) + ")")
     p.add_argument("--name", default=DEFAULT_NAME, help=f"the benchmark's name (default {DEFAULT_NAME}): its folders")
+    p.add_argument("--anchors", default=None, metavar="PATH",
+                   help="normalisation anchors of the aggregate and the equivalence margins (default "
+                        "results/normalisation.json, Table 2's tasks; results/normalisation-hard.json: the hard "
+                        "set's)")
     p.add_argument("--task-steps", action="append", default=[], metavar="TASK=STEPS",
                    help="a task's own budget, env steps per seed, instead of --steps (repeatable, or comma-separated)")
     p.add_argument("--task-seeds", action="append", default=[], metavar="TASK=SEEDS",
                    help="a task's own seed count, instead of --seeds (repeatable, or comma-separated): e.g. the "
                         "counts a pilot's spread asks for (experiments.analysis.power.seeds_for)")
     p.add_argument("--task-set", action="append", default=[], metavar="TASK:GROUP.FIELD=VALUE",
-                   help="a config override of one task's cells, after --set's (repeatable, one override each): e.g. its "
-                        "evaluation interval, dmc:reacher-hard:run.eval_every=5000")
+                   help="a config override of one task's cells, after --set's (repeatable, one override each): e.g. "
+                        "its evaluation interval, dmc:reacher-hard:run.eval_every=5000")
     add_grid_options(p, seeds=DEFAULT_SEEDS, seed=DEFAULT_SEED, steps=DEFAULT_STEPS, physics="mujoco",
                      steps_help=f"env steps per seed of every cell (default {DEFAULT_STEPS:,})",
                      physics_help="engine of the MuJoCo tasks (default mujoco, MuJoCo's C engine; gym: tasks need it)",
@@ -204,6 +208,8 @@ def plan(a: argparse.Namespace) -> tuple[list[str], list[artefacts.Entry], list[
     chosen = entries(a)
     check_grid_options(a, trains=not a.artefacts_only and not a.dry_run)
     check_estimate_options(a, tasks)
+    if a.anchors is not None and not os.path.isfile(a.anchors):
+        raise ValueError(f"--anchors {a.anchors}: no such file")
     grids = {}
     for student in dict.fromkeys(e.student for e in chosen):
         runs, results = artefacts.student_dirs(a.runs_dir, a.results_dir, student)
@@ -252,6 +258,7 @@ def grid_plan(a: argparse.Namespace, argv: list[str]) -> engine.GridPlan:
                    "seeds": a.seeds, "seed": a.seed, "steps": a.steps, "physics": a.physics,
                    "overrides": a.overrides, **({"task_settings": own} if own else {}), "argv": argv}
         manifest = bench_report.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
+                                      anchors_path=a.anchors,
                                       extra_provenance={"benchmark_wall_seconds": wall_seconds})
         print(f"artefacts: {len(manifest['files'])} files in {a.results_dir} ({len(manifest['cells'])} stored cells, "
               f"{len(manifest['not_run'])} not run)", flush=True)

@@ -5,6 +5,8 @@ policy's return, 1 = the reference return. Measured and written once; every aggr
     python -m experiments.normalisation --episodes 20 --tasks pendulum,hopper --out /tmp/anchors.json
     python -m experiments.normalisation --tasks dmc:cartpole-swingup_sparse,dmc:reacher-hard \
         --out results/normalisation-dmc.json           # DeepMind Control tasks: 1 = the suite's maximum
+    python -m experiments.normalisation --tasks mountain_car_continuous,dmc:hopper-hop \
+        --out results/normalisation-hard.json          # 1 = each task's own fixed reference
 
 * **0, the random policy**: actions uniform in [-1, 1]^d (the tasks' scaled action space) through the project's
   evaluation (``metapg_jax.evaluate`` with a stochastic policy: episodes from seeded resets, each up to the
@@ -16,8 +18,9 @@ policy's return, 1 = the reference return. Measured and written once; every aggr
   baseline of every comparison scores 1 on Table 2's tasks by construction (as human-normalised Atari scores
   put the human at 1).
 
-  A DeepMind Control task (``dmc:``) has no cell in that grid; its 1 is the suite's own maximum, 1,000 (a reward
-  of at most 1 per step over the 1,000-step episode), as the field normalises DMC returns. Its anchors go to a
+  A task whose spec fixes its 1 (``envs.TaskSpec.reference_return``) has no cell in that grid: a DeepMind Control
+  task's is the suite's own maximum, 1,000 (a reward of at most 1 per step over the 1,000-step episode), as the
+  field normalises DMC returns; MountainCarContinuous's is gymnasium's solved threshold, 90. Their anchors go to a
   file of their own (``--out``), so that the Table 2 file keeps the tasks its aggregates were built on.
 """
 
@@ -52,16 +55,15 @@ def random_policy_returns(task: str, episodes: int, seed: int = 0):
     return np.asarray(ret, np.float64), np.asarray(length), cfg.env.physics
 
 
-# The reference of a DeepMind Control task: the suite's maximum return per episode (envs/dmc.py: reward in [0, 1]).
-DMC_MAXIMUM = 1000.0
+def fixed_reference(task: str) -> dict | None:
+    """The reference a task's spec fixes (``envs.TaskSpec.reference_return``: a DeepMind Control task's maximum,
+    MountainCarContinuous's solved threshold), or None for a task whose reference is a grid's cell."""
+    import envs
 
-
-def dmc_reference(task: str) -> dict:
-    """The reference of a ``dmc:`` task: the suite's maximum return, ``DMC_MAXIMUM``."""
-    from envs.dmc_names import EPISODE_LENGTH
-
-    return {"reference_return": DMC_MAXIMUM, "reference": f"the suite's maximum: a reward of at most 1 per step "
-                                                          f"over the {EPISODE_LENGTH:,}-step episode"}
+    spec = envs.get_spec(task)
+    if spec.reference_return is None:
+        return None
+    return {"reference_return": spec.reference_return, "reference": spec.reference}
 
 
 def reference_returns(path: str = REFERENCE_GRID, method: str = REFERENCE_METHOD) -> dict:
@@ -115,19 +117,20 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
-    dmc = [t for t in tasks if envs.is_dmc_task(t)]
-    if dmc and len(dmc) < len(tasks):
-        print("error: DeepMind Control tasks have their own reference (the suite's maximum) and file: pass them "
-              "without the Table 2 tasks, with their own --out", file=sys.stderr)
+    fixed = {t: r for t in tasks if (r := fixed_reference(t)) is not None}
+    if fixed and len(fixed) < len(tasks):
+        print("error: DeepMind Control tasks and MountainCarContinuous have their own reference (the suite's maximum, "
+              "the solved threshold) and file: pass them without the Table 2 tasks, with their own --out",
+              file=sys.stderr)
         return 2
-    if dmc and os.path.abspath(args.out) == os.path.abspath(DEFAULT_OUT):
-        print(f"error: {DEFAULT_OUT} holds Table 2's anchors; write DeepMind Control tasks' to a file of their own "
-              f"(--out results/normalisation-dmc.json)", file=sys.stderr)
+    if fixed and os.path.abspath(args.out) == os.path.abspath(DEFAULT_OUT):
+        print(f"error: {DEFAULT_OUT} holds Table 2's anchors; write {', '.join(fixed)}'s to a file of their own "
+              f"(--out results/normalisation-hard.json)", file=sys.stderr)
         return 2
     if args.episodes < 2:
         print(f"error: --episodes must be at least 2 (a mean and a std), got {args.episodes}", file=sys.stderr)
         return 2
-    references = {t: dmc_reference(t) for t in dmc} if dmc else reference_returns()
+    references = fixed or reference_returns()
     missing = [t for t in tasks if t not in references]
     if missing:
         print(f"error: {REFERENCE_GRID} has no finished {REFERENCE_METHOD} cell for {', '.join(missing)}",
@@ -149,8 +152,9 @@ def main(argv: list[str] | None = None) -> int:
         "definition": "normalised score = (return - random_return) / (reference_return - random_return)",
         "random_policy": {"actions": "uniform in [-1, 1]^d, a fresh draw per step", "episodes": args.episodes,
                           "seed": args.seed, "statistics": "mean and sample std (ddof=1) over episodes"},
-        "reference": ({"kind": "the DeepMind Control suite's maximum return per episode", "return": DMC_MAXIMUM}
-                      if dmc else
+        "reference": ({"kind": "each task's own fixed reference (envs.TaskSpec.reference_return; the task's "
+                               "'reference' says what it is)"}
+                      if fixed else
                       {"grid": os.path.relpath(REFERENCE_GRID, ROOT), "method": REFERENCE_METHOD,
                        "statistic": "mean final return over the cell's seeds "
                                     "(experiments.analysis.stats.FINAL_DEFINITION)"}),

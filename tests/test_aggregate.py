@@ -113,15 +113,23 @@ def test_the_random_policys_returns_anchor_zero(tmp_path, capsys):
     assert not (tmp_path / "x.json").exists()
 
 
-def test_a_dmc_tasks_anchors_are_its_random_policy_and_the_suites_maximum(tmp_path):
+def test_fixed_references_are_the_dmc_maximum_and_mountain_cars_solved_threshold(tmp_path, capsys):
     """A DeepMind Control task: 0 = the random policy's return over whole 1,000-step episodes (never ended early),
-    1 = the suite's maximum, 1,000."""
+    1 = the suite's maximum, 1,000. MountainCarContinuous: 1 = gymnasium's solved threshold, 90; a random policy
+    pays the action cost (0.1 a^2 per step, E[a^2] = 1/3 for uniform actions) and rarely reaches the flag."""
     pytest.importorskip("dm_control")
-    out = tmp_path / "dmc.json"
-    assert normalisation.main(["--tasks", "dmc:pendulum-swingup", "--episodes", "2", "--out", str(out)]) == 0
+    out = tmp_path / "hard.json"
+    assert normalisation.main(["--tasks", "mountain_car_continuous,dmc:pendulum-swingup", "--episodes", "2",
+                               "--out", str(out)]) == 0
     stored = json.loads(out.read_text())
     task = stored["tasks"]["dmc:pendulum-swingup"]
     assert task["reference_return"] == 1000.0 and task["random_episode_length_mean"] == 1000.0
-    assert 0 <= task["random_return"] < 1000 and task["engine"] == "mujoco"
-    assert stored["reference"]["return"] == 1000.0
-    assert normalisation.load(str(out))["dmc:pendulum-swingup"] == (task["random_return"], 1000.0)
+    assert 0 <= task["random_return"] < 1000 and task["engine"] == "mujoco" and "maximum" in task["reference"]
+    car = stored["tasks"]["mountain_car_continuous"]
+    assert car["reference_return"] == 90.0 and "solved threshold" in car["reference"]
+    assert -60 < car["random_return"] < 0
+    assert "fixed reference" in stored["reference"]["kind"]
+    assert normalisation.load(str(out)) == {"dmc:pendulum-swingup": (task["random_return"], 1000.0),
+                                            "mountain_car_continuous": (car["random_return"], 90.0)}
+    assert normalisation.main(["--tasks", "mountain_car_continuous,hopper", "--out", str(tmp_path / "x.json")]) == 2
+    assert "pass them without the Table 2 tasks" in capsys.readouterr().err

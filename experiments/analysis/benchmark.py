@@ -26,8 +26,8 @@ from typing import Sequence
 import numpy as np
 
 from experiments.analysis import cells, stats, tables
-from experiments.grid.methods import (METHOD_NAMES, NAMED_ONLY, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES, noise_methods,
-                                    task_folder)
+from experiments.grid.methods import (METHOD_NAMES, NAMED_ONLY, STRATEGIES, STUDENT_BASELINES, STUDENT_NAMES,
+                                    noise_methods, task_folder)
 
 # The preset of every student's grid (a grid method with a preset of its own, the tuned teacher, keeps it).
 PRESET = "paper"
