@@ -1,5 +1,6 @@
 """The seed rule and the "exploration matters" figure (experiments/analysis/power.py), on fabricated numbers."""
 
+import json
 import math
 
 import numpy as np
@@ -70,3 +71,61 @@ def test_exploration_matters_is_the_spread_of_entry_means_over_the_pooled_seed_s
         power.exploration_matters({"a": [1.0, 2.0]})
     with pytest.raises(ValueError, match="no entry has two seeds"):
         power.pooled_std([[1.0], [2.0]])
+
+
+def _pilot(tmp_path, tasks):
+    """A fabricated pilot benchmark: tasks/<task>.json with each entry's final returns per seed."""
+    (tmp_path / "tasks").mkdir(parents=True)
+    for task, cells in tasks.items():
+        rows = [{"student": "td3", "method": m, "status": status, "per_seed": seeds}
+                for m, (status, seeds) in cells.items()]
+        (tmp_path / "tasks" / f"{task}.json").write_text(json.dumps({"task": task, "rows": rows}))
+    return tmp_path
+
+
+def test_the_seed_plan_of_a_fabricated_pilot(tmp_path, capsys):
+    from experiments.analysis.render import power as render
+
+    pilot = _pilot(tmp_path / "pilot", {
+        "hopper": {"x": ("done", [0.0, 100.0, 200.0]), "y": ("done", [300.0, 400.0, 500.0]),
+                   "z": ("running", [9e9, 9e9])},                                   # unfinished: not read
+        "pendulum": {"x": ("done", [0.0, 0.0, 0.0]), "y": ("done", [0.0, 0.0])},   # no spread at all
+        "reacher": {"x": ("done", [0.0, 1000.0]), "y": ("done", [0.0, 1000.0])},   # all seed noise
+        "halfcheetah": {"x": ("done", [1.0, 2.0])}})                                 # one entry: left out
+    anchors = tmp_path / "anchors.json"
+    anchors.write_text(json.dumps({"tasks": {"hopper": {"random_return": 0.0, "reference_return": 1000.0},
+                                             "pendulum": {"random_return": -50.0, "reference_return": 50.0},
+                                             "reacher": {"random_return": 0.0, "reference_return": 1000.0}}}))
+    argv = ["--results-dir", str(pilot), "--anchors", str(anchors), "--comparisons", "4", "--maximum", "40"]
+    assert render.main(argv) == 0
+    plan = json.loads((pilot / "seeds.json").read_text())
+    rows = {r["task"]: r for r in plan["tasks"]}
+    assert sorted(rows) == ["hopper", "pendulum", "reacher"]
+    # Hopper: both entries' variance 100^2, so the pooled std is 100, a tenth of the range; 1 std at 0.05 / 4.
+    h = rows["hopper"]
+    assert h["pooled_std"] == pytest.approx(100.0) and h["delta"] == pytest.approx(100.0)
+    n = h["needed"]
+    assert power.power(n, 1.0, 4) >= 0.8 > power.power(n - 1, 1.0, 4) and h["seeds"] == n and not h["capped"]
+    assert h["matters_spread"] == pytest.approx(300.0) and h["matters_figure"] == pytest.approx(3.0)
+    assert h["spread_fraction"] == pytest.approx(0.3) and h["matters_best"] == "td3/y"
+    assert h["detectable_fraction"] == pytest.approx(power.detectable_effect(n, 4) * 0.1)
+    # Pendulum: no seed spread, the minimum; the figure is 0 (no entry stands out either).
+    p = rows["pendulum"]
+    assert p["needed"] == p["seeds"] == 10 and p["detectable_fraction"] == 0.0 and p["matters_figure"] == 0.0
+    # Reacher: a seed std of 707 for a difference of 100 needs more than the cap: 40 seeds, and what they detect.
+    r = rows["reacher"]
+    assert r["needed"] is None and r["capped"] and r["seeds"] == 40
+    assert r["detectable_fraction"] == pytest.approx(power.detectable_effect(40, 4) * np.sqrt(5e5) / 1000)
+    md = (pilot / "seeds.md").read_text()
+    assert "| more than 40 | 40 |" in md and f"--task-seeds hopper={n}" in md and "0.05 / 4" in md
+    assert "wrote" in capsys.readouterr().out
+
+    (tmp_path / "partial.json").write_text(json.dumps({"tasks": {"hopper": {"random_return": 0.0,
+                                                                            "reference_return": 1.0}}}))
+    for bad, message in ((["--anchors", str(tmp_path / "partial.json")], "no normalisation anchors"),
+                         (["--results-dir", str(tmp_path)], "no tasks/ folder"),
+                         (["--maximum", "5"], "must be a whole number >= minimum")):
+        args = dict(zip(argv[::2], argv[1::2]))
+        args.update(dict(zip(bad[::2], bad[1::2])))
+        assert render.main([x for kv in args.items() for x in kv]) == 2
+        assert message in capsys.readouterr().err

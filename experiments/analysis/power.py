@@ -16,6 +16,13 @@ matters, so that no verdict of the family is starved of seeds:
 * ``exploration_matters``: per task, the spread between the best and the worst entry's mean final return over
   the seeds' pooled standard deviation: a task where no entry stands out from the seed noise (a small figure)
   cannot tell strategies apart whatever the seed count.
+* ``seed_plan``: the rule applied to a pilot grid's final returns, task by task: the seeds' standard deviation
+  pooled over the pilot's entries, the difference that matters as a ``fraction`` of the task's normalised range
+  (reference - random policy, ``experiments.normalisation``), and ``seeds_for``'s count, capped at ``maximum``
+  (a cost cap: where the rule asks for more, the plan says so and what the capped count detects).
+
+``python -m experiments.analysis.power --results-dir <a pilot benchmark's results> --anchors <file>`` writes the
+plan (``seeds.md``, ``seeds.json``; ``experiments.analysis.render.power``).
 """
 
 from __future__ import annotations
@@ -116,3 +123,47 @@ def exploration_matters(per_entry: Mapping[str, Sequence[float]]) -> dict:
     spread, std = means[best] - means[worst], pooled_std(list(per_entry.values()))
     figure = spread / std if std > 0 else (math.inf if spread > 0 else 0.0)
     return {"best": best, "worst": worst, "spread": spread, "pooled_std": std, "figure": figure}
+
+
+def seed_plan(per_task: Mapping[str, Mapping[str, Sequence[float]]], anchors: Mapping[str, tuple[float, float]],
+              fraction: float, comparisons: int, minimum: int = 10, maximum: int = 40, power_: float = POWER,
+              alpha: float = ALPHA) -> list[dict]:
+    """The seed rule on a pilot: ``per_task`` {task: {entry: the pilot's final returns per seed}}, ``anchors``
+    {task: (random policy's return, reference return)}. One row per task: the pilot's seeds, ``pooled_std`` (return
+    units and ``std_fraction`` of the range), ``delta`` (``fraction`` of the range), ``needed`` (``seeds_for``, None
+    beyond ``maximum``), ``seeds`` (the count to run: ``needed`` capped at ``maximum``), ``detectable_fraction``
+    (the difference, as a fraction of the range, that ``seeds`` detect with the power at level alpha /
+    comparisons) and the task's ``exploration_matters`` figure (its spread also as ``spread_fraction``)."""
+    if not 0 < fraction < 1:
+        raise ValueError(f"the fraction of the range must lie in (0, 1), got {fraction!r}")
+    if int(maximum) != maximum or maximum < minimum:
+        raise ValueError(f"maximum ({maximum!r}) must be a whole number >= minimum ({minimum})")
+    rows = []
+    for task, entries in per_task.items():
+        if task not in anchors:
+            raise ValueError(f"{task}: no normalisation anchors (its range sets the difference that matters)")
+        low, high = anchors[task]
+        span = high - low
+        std, delta = pooled_std(list(entries.values())), fraction * span
+        try:
+            needed = seeds_for(std, delta, comparisons, power_, alpha, minimum, maximum)
+        except ValueError:  # beyond the cap (seeds_for's only other errors are bad arguments, checked above)
+            needed = None
+        seeds = maximum if needed is None else needed
+        detectable = detectable_effect(seeds, comparisons, power_, alpha) * std / span
+        matters = exploration_matters(entries)
+        rows.append({"task": task, "entries": len(entries), "pilot_seeds": {k: len(v) for k, v in entries.items()},
+                     "range": [low, high], "pooled_std": std, "std_fraction": std / span, "delta": delta,
+                     "needed": needed, "seeds": seeds, "capped": needed is None, "detectable_fraction": detectable,
+                     **{f"matters_{k}": v for k, v in matters.items()},
+                     "spread_fraction": matters["spread"] / span})
+    return rows
+
+
+
+if __name__ == "__main__":  # the command's parsing and files are the rendering side's
+    import sys
+
+    from experiments.analysis.render.power import main
+
+    sys.exit(main())
