@@ -188,6 +188,13 @@ def task_settings(a: argparse.Namespace, tasks: list[str]) -> dict[str, dict]:
     return out
 
 
+def aggregate_path(path: str) -> str:
+    """``path`` as the reports name their inputs (relative to the repository's root)."""
+    from experiments.aggregate import repo_path
+
+    return repo_path(path)
+
+
 def entries(a: argparse.Namespace) -> list[artefacts.Entry]:
     students = reproduce.parse_list(a.students, tuple(STRATEGIES), "student")
     baselines = parse_baselines(a.baseline)
@@ -256,7 +263,8 @@ def grid_plan(a: argparse.Namespace, argv: list[str]) -> engine.GridPlan:
         options = {"name": a.name, "students": list(dict.fromkeys(e.student for e in chosen)),
                    "strategies": [e.key for e in chosen], "baselines": artefacts.baselines_of(chosen),
                    "seeds": a.seeds, "seed": a.seed, "steps": a.steps, "physics": a.physics,
-                   "overrides": a.overrides, **({"task_settings": own} if own else {}), "argv": argv}
+                   "overrides": a.overrides, **({"task_settings": own} if own else {}),
+                   **({"anchors": aggregate_path(a.anchors)} if a.anchors is not None else {}), "argv": argv}
         manifest = bench_report.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
                                       anchors_path=a.anchors,
                                       extra_provenance={"benchmark_wall_seconds": wall_seconds})

@@ -133,7 +133,9 @@ def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, 
     monkeypatch.setattr(cells, "build_info", lambda runs_dir: {k: copy.deepcopy(v) for k, v in build.items()
                                                                 if k not in extra})
 
-    manifest = bench_report.build(build["runs_dir"], folder, entries, tasks, plan=plan, extra_provenance=extra)
+    anchors = os.path.join(ROOT, plan["anchors"]) if "anchors" in plan else None  # a benchmark's --anchors
+    manifest = bench_report.build(build["runs_dir"], folder, entries, tasks, plan=plan, anchors_path=anchors,
+                                  extra_provenance=extra)
 
     assert not (tmp_path / build["runs_dir"]).exists()
     assert manifest["files"] == stored["files"]

@@ -335,6 +335,9 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
                     plan={"name": "t", "students": ["td3", "sac"], "seeds": 4, "seed": 1000, "steps": 3000})
     assert "| `NOTES.md` | how the cells ran, kept by hand" in (results / "README.md").read_text()
     assert (results / "NOTES.md").read_text() == "# how the cells ran\n"
+    from experiments.aggregate import repo_path  # the verdicts' definition names the anchors file the build read
+    assert f"normalised range (reference − random policy's return, {repo_path(str(anchors))})" in \
+        (results / "tasks" / "hopper.md").read_text()
 
     # A baseline chosen in advance (TD3's pink noise): it is planned, Gaussian noise is not unless named, and the
     # verdicts and P(improvement) of TD3's other strategies are against it.

@@ -34,8 +34,10 @@ def _verdict_cells(r: dict) -> list[str]:
 
 
 def write_task_tables(task: str, table: list[dict], families: dict[str, dict], out_dir: str, footer: str,
-                      build_commit: str | None) -> list[str]:
-    """``tasks/<task>.md``, ``.json`` and ``_per_seed.csv``; returns the paths."""
+                      build_commit: str | None, anchors: str = "results/normalisation.json") -> list[str]:
+    """``tasks/<task>.md``, ``.json`` and ``_per_seed.csv``; returns the paths. ``anchors``: the anchors file the
+    verdicts' definition names."""
+    definition = stats.VERDICT_DEFINITION.replace("results/normalisation.json", anchors)
     folder = os.path.join(out_dir, "tasks")
     os.makedirs(folder, exist_ok=True)
     base = os.path.join(folder, task_folder(task))
@@ -50,7 +52,7 @@ def write_task_tables(task: str, table: list[dict], families: dict[str, dict], o
           "estimated). Raw per-seed numbers: `" + os.path.basename(paths[2]) + "`.", "",
           f"- {stats.FINAL_DEFINITION}.",
           "- mean ± std over seeds (ddof=1); 95% CI: mean ± t(0.975, n−1)·s/√n.",
-          f"- {stats.VERDICT_DEFINITION}. Each student's family: every one of its strategies against its baseline "
+          f"- {definition}. Each student's family: every one of its strategies against its baseline "
           f"on every task of the benchmark (" + ", ".join(f"{STUDENT_NAMES.get(s, s)}: {n} comparisons"
                                                        for s, n in sizes.items()) + ").",
           "- a − b: difference of the mean final returns with its 95% Welch CI; margin: the equivalence margin in "
@@ -69,7 +71,7 @@ def write_task_tables(task: str, table: list[dict], families: dict[str, dict], o
         f.write("\n".join(md))
     with open(paths[1], "w") as f:
         json.dump({"task": task, "final_definition": stats.FINAL_DEFINITION,
-                   "verdicts_definition": stats.VERDICT_DEFINITION,
+                   "verdicts_definition": definition,
                    "baselines": {s: bases[s] for s in families},
                    "family_sizes": sizes, "rows": table}, f, indent=2, default=tables_md.json_default)
     with open(paths[2], "w", newline="") as f:
@@ -315,7 +317,8 @@ def build(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Sequ
     files, per_task = [], {}
     for t in tasks:
         per_task[t] = task_table(t, rows, entries, families)
-        files += write_task_tables(t, per_task[t], families, results_dir, footer, build_["commit"])
+        files += write_task_tables(t, per_task[t], families, results_dir, footer, build_["commit"],
+                                   aggregate.repo_path(anchors_path))
     rep, scored, why = aggregate_report(rows, entries, tasks, anchors)
     stale = ["aggregate.md", "aggregate.json", "performance_profiles.png", "aggregate_scores.png",
              "sample_efficiency.json", "sample_efficiency.png"]
