@@ -253,6 +253,24 @@ def test_the_artefacts_of_a_fabricated_benchmark(tmp_path):
         assert name in manifest["files"] and (results / name).exists(), name
     assert (results / "td3" / "cells" / "hopper" / "td3-pink" / "summary.json").exists()  # archived per student
 
+    # Where exploration matters: per task, best - worst entry mean over the seeds' pooled std (all five entries on
+    # Hopper, four on Reacher), and over the range where the task has anchors (not the gym: task).
+    matters = {r["task"]: r for r in json.loads((results / "exploration_matters.json").read_text())["tasks"]}
+    assert sorted(matters) == sorted(["hopper", "reacher", gym_task])
+    for task, entries_ in (("hopper", ("td3-normal", "td3-pink", "meta-independent", "sac-own", "sac-pink")),
+                           ("reacher", ("td3-normal", "td3-pink", "meta-independent", "sac-own"))):
+        finals = {m: stats.final_returns(values[(task, m)]) for m in entries_}
+        means = {m: float(np.mean(v)) for m, v in finals.items()}
+        pooled = np.sqrt(sum(np.var(v, ddof=1) * (v.size - 1) for v in finals.values())
+                         / sum(v.size - 1 for v in finals.values()))
+        spread = max(means.values()) - min(means.values())
+        r = matters[task]
+        assert r["cells"] == len(entries_) and r["spread"] == pytest.approx(spread)
+        assert r["figure"] == pytest.approx(spread / pooled)
+        assert r["spread_fraction"] == pytest.approx(spread / (ranges[task][1] - ranges[task][0]))
+        assert r["best"].endswith("/" + max(means, key=means.get))
+    assert matters[gym_task]["spread_fraction"] is None
+
     # Per task: every cell, the verdicts of one family per student (its strategies against its Gaussian noise on
     # both tasks), Holm-corrected.
     final = lambda t, m: stats.final_returns(values[(t, m)])

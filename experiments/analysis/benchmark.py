@@ -172,6 +172,37 @@ def task_table(task: str, rows: dict[str, list[dict]], entries: Sequence[Entry],
     return out
 
 
+MATTERS_DEFINITION = (
+    "exploration matters here: the spread between the best and the worst entry's mean final return on the task "
+    "(every finished cell of the task at its most common budget, both students), over the seeds' standard deviation "
+    "pooled over those cells (experiments.analysis.power.exploration_matters); and the spread as a fraction of the "
+    "task's normalised range (reference − random policy's return) where the task has anchors. A task whose "
+    "figure is small cannot tell strategies apart at any seed count")
+
+
+def exploration_matters(per_task: dict[str, list[dict]], anchors: dict | None) -> list[dict]:
+    """Per task of ``per_task`` (``task_table`` rows) with two finished cells at one budget: ``MATTERS_DEFINITION``'s
+    figure, {"task", "budget", "cells", "best", "worst", "spread", "pooled_std", "figure", "spread_fraction"
+    (None without anchors)}; entries are named by their keys (``<student>/<method>``)."""
+    from experiments.analysis import power
+
+    out = []
+    for task, table in per_task.items():
+        done = [r for r in table if r.get("status") == "done"]
+        budgets = [r["budget"] for r in done]
+        if not budgets:
+            continue
+        budget = max(set(budgets), key=lambda b: (budgets.count(b), b))  # the most common; ties: the longest
+        finals = {f"{r['student']}/{r['method']}": r["per_seed"] for r in done if r["budget"] == budget}
+        if len(finals) < 2 or all(len(v) < 2 for v in finals.values()):
+            continue
+        m = power.exploration_matters(finals)
+        span = (anchors[task][1] - anchors[task][0]) if anchors and task in anchors else None
+        out.append({"task": task, "budget": budget, "cells": len(finals), **m,
+                    "spread_fraction": m["spread"] / span if span else None})
+    return out
+
+
 # ---------------------------------------------------------------------------------------------- aggregate
 
 def best_fixed_noise(rep: dict, entries: Sequence[Entry]) -> dict[str, str]:

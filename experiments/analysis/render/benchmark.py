@@ -16,7 +16,9 @@ from experiments.analysis import cells, stats
 from experiments.analysis.render import tables as tables_md
 from experiments.analysis.benchmark import (BEST_NOISE_RULE, STUDENT_COLORS, Entry,
                                             aggregate_report, baselines_of, collect, cost_rows, cost_totals,
-                                            sample_efficiency, student_rows, task_table, verdict_counts, verdicts)
+                                            exploration_matters, sample_efficiency, student_rows, task_table,
+                                            verdict_counts, verdicts)
+from experiments.analysis.render.matters import write_matters
 from experiments.grid.methods import METHOD_NAMES, STUDENT_NAMES, task_folder, task_name
 
 
@@ -342,6 +344,7 @@ def build(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Sequ
     costs = cost_rows(results, entries, tasks)
     totals = cost_totals(costs)
     files += write_cost(costs, totals, results_dir, footer)
+    files += write_matters(exploration_matters(per_task, anchors), results_dir, footer)
     manifest = {
         "build": build_, "benchmark": {**(plan or {}), "tasks": list(tasks),
                                        "entries": [dataclasses.asdict(e) for e in entries],
@@ -376,6 +379,8 @@ FILES = {
     "sample_efficiency.png": "the same as curves with bands, one panel per student",
     "cost.md": "the cost of every cell: wall, CPU, training and compile seconds, env steps/s; the totals",
     "cost.json": "the same, machine-readable",
+    "exploration_matters.md": "per task: its best and worst entries' spread over the seeds' std, and over its range",
+    "exploration_matters.json": "the same, machine-readable",
 }
 
 
