@@ -160,7 +160,6 @@ def seed_plan(per_task: Mapping[str, Mapping[str, Sequence[float]]], anchors: Ma
     return rows
 
 
-
 if __name__ == "__main__":  # the command's parsing and files are the rendering side's
     import sys
 
