@@ -88,6 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "earlier benchmark): always planned; every other strategy of the student gets its verdicts "
                         "and probability of improvement against it (default: its Gaussian noise, "
                         + ", ".join(f"{s}={m}" for s, m in STUDENT_BASELINES.items()) + ")")
+    p.add_argument("--preset", default=artefacts.PRESET, choices=tuple(grid.BASELINES),
+                   help=f"the preset of every cell but those of a method with its own (default {artefacts.PRESET}): "
+                        "e.g. modern, to check that the strategies' order holds under the cheaper paper preset")
     p.add_argument("--name", default=DEFAULT_NAME, help=f"the benchmark's name (default {DEFAULT_NAME}): its folders")
     p.add_argument("--anchors", default=None, metavar="PATH",
                    help="normalisation anchors of the aggregate and the equivalence margins (default "
@@ -220,8 +223,8 @@ def plan(a: argparse.Namespace) -> tuple[list[str], list[artefacts.Entry], list[
     grids = {}
     for student in dict.fromkeys(e.student for e in chosen):
         runs, results = artefacts.student_dirs(a.runs_dir, a.results_dir, student)
-        grids[student] = (grid_run(a, runs, results, artefacts.PRESET, baseline_for(artefacts.PRESET, student)),
-                          grid_spec(a, artefacts.PRESET, student))
+        grids[student] = (grid_run(a, runs, results, a.preset, baseline_for(a.preset, student)),
+                          grid_spec(a, a.preset, student))
     per_task = task_settings(a, tasks)
     cells = [grid_cells.grid_cell(grids[e.student][0], dataclasses.replace(grids[e.student][1], **per_task[t]), t,
                                   e.method, key=(e.student, t, e.method), tag=f"{e.student}/{t}/{e.method}")
@@ -257,16 +260,18 @@ def grid_plan(a: argparse.Namespace, argv: list[str]) -> engine.GridPlan:
               f"cells of {a.seeds} seeds, {a.steps:,} env steps per seed, {a.physics} physics, base seed {a.seed}"
               + "".join(f"; {t}: {d['seeds']} seeds, {d['steps']:,} steps" + "".join(f", {x}" for x in d["overrides"])
                         for t, d in own.items())
-              + f"; cells in {a.runs_dir}/<student>/{artefacts.PRESET}/<task>/<method>, results in {a.results_dir}")
+              + (f", {a.preset} preset" if a.preset != artefacts.PRESET else "")
+              + f"; cells in {a.runs_dir}/<student>/{a.preset}/<task>/<method>, results in {a.results_dir}")
 
     def report(wall_seconds: float) -> None:
         options = {"name": a.name, "students": list(dict.fromkeys(e.student for e in chosen)),
                    "strategies": [e.key for e in chosen], "baselines": artefacts.baselines_of(chosen),
                    "seeds": a.seeds, "seed": a.seed, "steps": a.steps, "physics": a.physics,
                    "overrides": a.overrides, **({"task_settings": own} if own else {}),
-                   **({"anchors": aggregate_path(a.anchors)} if a.anchors is not None else {}), "argv": argv}
+                   **({"anchors": aggregate_path(a.anchors)} if a.anchors is not None else {}),
+                   **({"preset": a.preset} if a.preset != artefacts.PRESET else {}), "argv": argv}
         manifest = bench_report.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
-                                      anchors_path=a.anchors,
+                                      anchors_path=a.anchors, preset=a.preset,
                                       extra_provenance={"benchmark_wall_seconds": wall_seconds})
         print(f"artefacts: {len(manifest['files'])} files in {a.results_dir} ({len(manifest['cells'])} stored cells, "
               f"{len(manifest['not_run'])} not run)", flush=True)

@@ -135,7 +135,7 @@ def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, 
 
     anchors = os.path.join(ROOT, plan["anchors"]) if "anchors" in plan else None  # a benchmark's --anchors
     manifest = bench_report.build(build["runs_dir"], folder, entries, tasks, plan=plan, anchors_path=anchors,
-                                  extra_provenance=extra)
+                                  extra_provenance=extra, preset=plan.get("preset", "paper"))
 
     assert not (tmp_path / build["runs_dir"]).exists()
     assert manifest["files"] == stored["files"]

@@ -109,6 +109,18 @@ def test_a_task_can_have_its_own_budget_seeds_and_overrides(tmp_path, capsys, mo
                              "9,000 env steps per seed, mujoco physics, base seed 1000; dmc:cartpole-swingup_sparse: "
                              "5 seeds, 18,000 steps, run.eval_every=3000; cells in "), banner
 
+    # --preset modern: every cell but a method's own preset (the tuned teacher) under it, in <student>/modern/.
+    a = benchmark.build_parser().parse_args(["--tasks", "pendulum", "--students", "td3", "--strategies",
+                                             "td3-pink,meta-tuned", "--preset", "modern", "--steps", "36000"])
+    _, _, cells = benchmark.plan(a)
+    assert {c.name: c.spec.config().preset for c in cells} == {"td3-normal": "modern", "td3-pink": "modern",
+                                                               "meta-tuned": "tuned"}
+    assert benchmark.main(["--tasks", "pendulum", "--students", "td3", "--preset", "modern", "--steps", "36000",
+                           "--dry-run", "--no-calibrate", "--strategies", "td3-pink"]) == 0
+    out = capsys.readouterr().out
+    assert ", modern preset; cells in runs/benchmark-exploration/<student>/modern/" in out
+    assert "runs/benchmark-exploration/td3/modern/pendulum/td3-pink" in out and "--preset=modern" in out
+
 
 def test_the_learned_variants_are_entries_only_when_named_and_share_one_cycle_on_every_task(tmp_path, monkeypatch):
     """results/learned/README.md: the variants and controls run under the tuned preset in one 750-step cycle (a third

@@ -108,19 +108,20 @@ def student_dirs(runs_dir: str, results_dir: str, student: str) -> tuple[str, st
     return os.path.join(runs_dir, student), os.path.join(results_dir, student)
 
 
-def collect(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Sequence[str]) -> dict:
-    """{(student, task, method): RunResult} of the stored cells, every finished run folder first (re)archived
-    (``cells.archive_cell``); a cell without a finished run folder is read from the archive."""
+def collect(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Sequence[str],
+            preset: str = PRESET) -> dict:
+    """{(student, task, method): RunResult} of the stored cells of ``preset``'s grid, every finished run folder
+    first (re)archived (``cells.archive_cell``); a cell without a finished run folder is read from the archive."""
     out = {}
     for student in dict.fromkeys(e.student for e in entries):
         methods = [e.method for e in entries if e.student == student]
         runs, results = student_dirs(runs_dir, results_dir, student)
-        archive = cells.archive_dir_for(results, PRESET)
+        archive = cells.archive_dir_for(results, preset)
         for task in tasks:
             for method in methods:
-                cells.archive_cell(os.path.join(runs, PRESET, task_folder(task), method),
+                cells.archive_cell(os.path.join(runs, preset, task_folder(task), method),
                                    os.path.join(archive, task_folder(task), method), method, STUDENT_BASELINES[student])
-        found = cells.collect(os.path.join(runs, PRESET), tasks, methods, archive_dir=archive)
+        found = cells.collect(os.path.join(runs, preset), tasks, methods, archive_dir=archive)
         out.update({(student, t, m): r for (t, m), r in found.items()})
     return out
 

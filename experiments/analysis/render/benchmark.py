@@ -14,7 +14,7 @@ import numpy as np
 
 from experiments.analysis import cells, stats
 from experiments.analysis.render import tables as tables_md
-from experiments.analysis.benchmark import (BEST_NOISE_RULE, STUDENT_COLORS, Entry,
+from experiments.analysis.benchmark import (BEST_NOISE_RULE, PRESET, STUDENT_COLORS, Entry,
                                             aggregate_report, baselines_of, collect, cost_rows, cost_totals,
                                             exploration_matters, sample_efficiency, student_rows, task_table,
                                             verdict_counts, verdicts)
@@ -230,7 +230,8 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
              "much does it matter?", "",
              f"Every student ({', '.join(STUDENT_NAMES.get(s, s) for s in plan['students'])}) with each of its "
              f"strategies on {len(tasks)} task(s), {plan['seeds']} seeds per cell from base seed {plan['seed']}, "
-             f"{budget}, {plan.get('physics')} physics for the MuJoCo tasks; the paper preset's networks and schedule "
+             f"{budget}, {plan.get('physics')} physics for the MuJoCo tasks; the {plan.get('preset', 'paper')} preset's "
+             "networks and schedule "
              "(the tuned teacher: the tuned preset). Made by `python -m experiments.benchmark` "
              f"(`{' '.join(plan.get('argv') or []) or 'default options'}`), which runs, resumes and skips cells and "
              f"rebuilds this folder from the stored ones (`--artefacts-only`: rebuild only). {done} of "
@@ -299,18 +300,20 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
 
 
 def build(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Sequence[str],
-          plan: dict | None = None, anchors_path: str | None = None, extra_provenance: dict | None = None) -> dict:
+          plan: dict | None = None, anchors_path: str | None = None, extra_provenance: dict | None = None,
+          preset: str = PRESET) -> dict:
     """Rebuilds ``results_dir`` from the stored cells of ``entries`` x ``tasks`` (``collect``); returns the manifest.
 
     ``plan``: the benchmark's options (name, students, strategies, seeds, seed, steps, physics, argv), written into
     the README and the manifest; ``anchors_path`` (default ``results/normalisation.json``): the normalisation
-    anchors of the aggregate and of the verdicts' equivalence margins."""
+    anchors of the aggregate and of the verdicts' equivalence margins; ``preset``: the grid's (its cells'
+    folders)."""
     from experiments import aggregate, normalisation
 
     os.makedirs(results_dir, exist_ok=True)
     anchors_path = normalisation.DEFAULT_OUT if anchors_path is None else anchors_path
     anchors = normalisation.load(anchors_path) if os.path.exists(anchors_path) else None
-    results = collect(runs_dir, results_dir, entries, tasks)
+    results = collect(runs_dir, results_dir, entries, tasks, preset)
     build_ = cells.build_info(runs_dir)
     build_.update(extra_provenance or {})
     footer = cells.provenance_footer(build_, results.values())
