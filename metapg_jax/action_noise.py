@@ -34,6 +34,7 @@ from typing import Any, Callable
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from metapg_jax import strategy
 from metapg_jax.config import positive
@@ -156,3 +157,31 @@ register_kind(NoiseKind("ou", _zeros, _ou_sample, episode_start=lambda config, x
                         validate=_check_ou, summary="Ornstein-Uhlenbeck, reset to 0 at every episode start"))
 register_kind(NoiseKind("none", _zeros, lambda config, process, key: (process, 0.0, process),
                         summary="no noise: the student's actor"))
+
+
+# ------------------------------------------------------------------------------------------ colored sequences
+# The draw of colored noise (metapg_jax/strategies/pink.py's docstring has the method and its differences from the
+# reference package): the pink kind's and the bandit teacher's colored D0's.
+
+def amplitudes(beta: float, length: int) -> np.ndarray:
+    """w_k = max(k / T, 1 / T)^(-beta / 2) for k = 0..T/2 (module docstring)."""
+    f = np.fft.rfftfreq(length)
+    return np.maximum(f, 1.0 / length) ** (-beta / 2.0)
+
+
+def colored_sequence(key: jax.Array, beta: float, length: int, size: int) -> jax.Array:
+    """(length, size) Gaussian noise with power spectrum ~ 1/f^beta along the first axis, each column
+    independent, every entry of variance 1 in expectation."""
+    w = amplitudes(beta, length)
+    k_re, k_im = jax.random.split(key)
+    shape = (size, len(w))
+    real = jax.random.normal(k_re, shape) * w
+    imag = jax.random.normal(k_im, shape) * w
+    edges = [0] + ([len(w) - 1] if length % 2 == 0 else [])   # DC and (T even) Nyquist: real coefficients
+    imag = imag.at[:, edges].set(0.0)
+    real = real.at[:, edges].multiply(math.sqrt(2.0))
+    y = jnp.fft.irfft(real + 1j * imag, n=length, axis=-1)
+    middle = w[1:-1] if length % 2 == 0 else w[1:]
+    edge_power = w[0] ** 2 + (w[-1] ** 2 if length % 2 == 0 else 0.0)
+    variance = 2.0 / length ** 2 * (edge_power + 2.0 * np.sum(middle ** 2))
+    return (y / math.sqrt(variance)).T.astype(jnp.float32)

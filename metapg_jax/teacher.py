@@ -23,7 +23,8 @@ with Adam (lr 1e-4), ``teacher_steps`` steps per cycle on the same D0.
 Other designs are one file each in ``metapg_jax.strategies`` that subclasses :class:`Teacher` and calls
 :func:`register_design` (:func:`designs` lists them); Algorithm 1's cycle
 (``metapg_jax.strategies.meta``) asks :func:`make` for the design that ``meta.teacher`` names and uses only
-this class's methods: ``init``, ``begin_cycle``, ``sample``, ``update``, ``diagnostics``, ``normalize_reward``.
+this class's methods: ``init``, ``begin_cycle``, ``d0_carry``, ``sample_step`` (``sample``'s by default), ``end_d0``,
+``update``, ``diagnostics``, ``normalize_reward``.
 """
 
 from __future__ import annotations
@@ -127,6 +128,21 @@ class Teacher:
         mean, log_std = self.distribution(params, student_actor, obs_normalized)
         raw = mean + jnp.exp(log_std) * jax.random.normal(key, mean.shape)
         return jnp.clip(raw, -1.0, 1.0), raw
+
+    # D0's rollout carries a per-step state across steps and cycles where a design needs one (the colored bandit's
+    # noise sequence); the paper's designs and every other have none: D0's actions are ``sample``'s.
+    def d0_carry(self, state: TeacherState) -> Any:
+        """The state D0's rollout starts from (kept by ``end_d0`` for the next cycle's D0); None: no state."""
+        return None
+
+    def sample_step(self, params, carry, student_actor, obs_normalized, first, key):
+        """One step of D0: (clipped action, unclipped sample, carry); ``first`` marks an episode's first step."""
+        action, raw = self.sample(params, student_actor, obs_normalized, key)
+        return action, raw, carry
+
+    def end_d0(self, state: TeacherState, carry: Any) -> TeacherState:
+        """``state`` after D0's rollout, which ended with ``carry``."""
+        return state
 
     def log_prob(self, params, student_actor, obs_normalized, raw_action) -> jax.Array:
         """log pi_e(a|s) of the unclipped sample, summed over action dimensions."""

@@ -51,7 +51,7 @@ def _teacher(design, state_dependent, bandit=BanditConfig(), **kw):
     """A design (``teacher_lib.make``) for a 3-d observation, 2-d action DDPG student, and that student's actor."""
     ddpg = DDPG(DDPGConfig(hidden=(8, 8)), obs_size=3, action_size=2)
     cfg = MetaConfig(teacher=design, state_dependent_std=state_dependent, hidden=(8, 8), **kw)
-    config = types.SimpleNamespace(meta=cfg, residual=ResidualConfig(), bandit=bandit)
+    config = types.SimpleNamespace(meta=cfg, residual=ResidualConfig(), bandit=bandit, episode_length=64)
     return teacher_lib.make(config, ddpg), ddpg.init(jax.random.PRNGKey(5)).actor
 
 
@@ -327,3 +327,49 @@ def test_the_meta_reward_spread_paired_and_unpaired():
                                np.hypot(np.std(r1, ddof=1), np.std(r0, ddof=1)), rtol=1e-6)
     one = meta.meta_reward_spread(r1[:1], r0[:1])
     assert np.isnan(float(one["meta_reward_sd_paired"])) and np.isnan(float(one["meta_reward_sd_unpaired"]))
+
+
+def test_a_colored_bandit_d0_takes_its_noise_from_one_sequence_per_episode():
+    """bandit.beta=1: D0's noise is a pink sequence drawn at an episode's first step from that step's key and read
+    step by step (the carry, kept across cycles in the parameters by end_d0); beta=0 is sample()'s white noise with
+    no carry. A bad beta is one line before anything compiles."""
+    from metapg_jax.action_noise import colored_sequence
+
+    teacher, actor = _teacher("bandit", False, BanditConfig(scales=(0.5,), beta=1.0))
+    state = teacher.init(jax.random.PRNGKey(0))
+    carry, obs = teacher.d0_carry(state), jnp.full((3,), 0.3)
+    mean = np.asarray(teacher.distribution(state.params, actor, obs)[0])
+    keys = jax.random.split(jax.random.PRNGKey(3), 70)
+    step = jax.jit(lambda c, first, k: teacher.sample_step(state.params, c, actor, obs, first, k))
+    raws = []
+    for t in range(70):  # episodes of 64 steps: a new one at step 64
+        _, raw, carry = step(carry, jnp.asarray(t in (0, 64)), keys[t])
+        raws.append(np.asarray(raw))
+    z = (np.stack(raws) - mean) / 0.5
+    np.testing.assert_allclose(z[:64], colored_sequence(keys[0], 1.0, 64, 2), atol=1e-5)
+    np.testing.assert_allclose(z[64:], colored_sequence(keys[64], 1.0, 64, 2)[:6], atol=1e-5)
+    kept = teacher.end_d0(state, carry)
+    assert int(kept.params["noise"]["step"]) == 6 and teacher.d0_carry(kept) is kept.params["noise"]
+
+    white, _ = _teacher("bandit", False, BanditConfig(scales=(0.5,)))
+    w = white.init(jax.random.PRNGKey(0))
+    assert white.d0_carry(w) is None and "noise" not in w.params
+    _, raw, c = white.sample_step(w.params, None, actor, obs, jnp.asarray(True), keys[0])
+    np.testing.assert_array_equal(raw, white.sample(w.params, actor, obs, keys[0])[1])
+    assert c is None and white.end_d0(w, None) is w
+    colored = meta.make_teacher(make_train(tiny_config("meta", **{"meta.teacher": "bandit", "bandit.beta": 1.0,
+                                                                  "env.episode_length": 70})))
+    assert (colored.bandit.beta, colored.episode_length) == (1.0, 70)  # the run's config reaches the teacher
+    with pytest.raises(ValueError, match="bandit.beta must be a finite number >= 0"):
+        validate(tiny_config("meta", **{"meta.teacher": "bandit", "bandit.beta": -1.0}))
+
+
+@pytest.mark.slow
+def test_a_run_with_a_colored_bandit_d0_resumes_bit_for_bit(tmp_path):
+    """The colored sequence and its step are in the checkpoint: a run resumed mid-episode (70-step episodes) draws
+    the same noise and ends with the numbers of an uninterrupted one."""
+    from tests.helpers import rewind_resume_and_compare, tiny_argv
+
+    args = [*tiny_argv("meta", **{"meta.teacher": "bandit", "bandit.scales": "0.1", "bandit.beta": 1.0,
+                                  "env.episode_length": 70}), "--steps=600", "--checkpoint-every=1"]
+    rewind_resume_and_compare(tmp_path, args)

@@ -17,6 +17,15 @@ Why (results/learned/README.md, hypothesis H2): REINFORCE with one scalar reward
 reliable comparisons, as in Schaul et al. (2019) and TOP (Moskovitz et al., 2021), whose bandits choose among a
 few behaviour modulations. One scale (``bandit.scales=0.1``) is a fixed-noise control with Algorithm 1's schedule;
 ``bandit.scales=0`` a control whose D0 is the noiseless student (no exploration data at all).
+
+Colored D0 (``bandit.beta``, ours): 0 (the default) draws white Gaussian noise at every step, as above; beta > 0
+takes the noise from a colored sequence with power spectrum ~ 1/f^beta (1 pink, 2 red;
+``metapg_jax.action_noise.colored_sequence``, Eberhard et al., 2023), one per episode of the exploring env and
+action dimension, drawn at the episode's first step from that step's key and scaled by the cycle's arm. Episodes continue across cycles (the exploring env steps only
+in D0), so the sequence and its step are kept in the parameters (``noise``) from one D0 to the next, and a
+chunked or resumed run draws the same noise. Each step's noise still has the arm's variance, so the value and the
+diagnostics read the arm's scale as for white noise. ``bandit.scales=0.1 bandit.beta=1`` is the "student + pink
+noise" control of a colored D0 in Algorithm 1's cycle.
 """
 
 from __future__ import annotations
@@ -28,6 +37,7 @@ import jax
 import jax.numpy as jnp
 
 from metapg_jax import strategy, teacher
+from metapg_jax.action_noise import colored_sequence
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,6 +47,7 @@ class BanditConfig:
     scales: tuple[float, ...] = (0.05, 0.1, 0.2, 0.4)  # Gaussian noise scales (TD3's 0.1, half, twice, 4 times it)
     epsilon: float = 0.2      # probability of a uniformly random arm once every arm has been tried
     step_size: float = 0.05   # the values' smallest step (recency weighting)
+    beta: float = 0.0         # D0's noise color: 0 white, 1 pink, 2 red (module docstring)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -44,6 +55,7 @@ class BanditTeacher(teacher.Teacher):
     """``teacher.Teacher`` whose parameters are the bandit's state: {'values', 'pulls' (per arm), 'arm'}."""
 
     bandit: BanditConfig = BanditConfig()
+    episode_length: int = 1000   # the exploring env's time limit: a colored sequence's length
 
     @property
     def scales(self) -> jax.Array:
@@ -53,6 +65,9 @@ class BanditTeacher(teacher.Teacher):
         k = len(self.bandit.scales)
         params = {"values": jnp.zeros((k,), jnp.float32), "pulls": jnp.zeros((k,), jnp.float32),
                   "arm": jnp.zeros((), jnp.int32)}
+        if self.bandit.beta > 0:  # a colored D0's sequence and step, drawn at the exploring env's first step
+            params["noise"] = {"sequence": jnp.zeros((self.episode_length, self.action_size), jnp.float32),
+                               "step": jnp.zeros((), jnp.int32)}
         return self.new_state(params, ())
 
     def choose(self, params, key: jax.Array) -> jax.Array:
@@ -81,6 +96,23 @@ class BanditTeacher(teacher.Teacher):
         raw = mean + self.scale(params) * jax.random.normal(key, mean.shape)
         return jnp.clip(raw, -1.0, 1.0), raw
 
+    def d0_carry(self, state):
+        return state.params["noise"] if self.bandit.beta > 0 else None
+
+    def sample_step(self, params, carry, student_actor, obs_normalized, first, key):
+        if self.bandit.beta == 0:
+            return super().sample_step(params, carry, student_actor, obs_normalized, first, key)
+        length = carry["sequence"].shape[0]
+        sequence = jax.lax.cond(first, lambda: colored_sequence(key, self.bandit.beta, length, self.action_size),
+                                lambda: carry["sequence"])
+        step = jnp.where(first, 0, carry["step"])
+        mean, _ = self.distribution(params, student_actor, obs_normalized)
+        raw = mean + self.scale(params) * sequence[jnp.minimum(step, length - 1)]
+        return jnp.clip(raw, -1.0, 1.0), raw, {"sequence": sequence, "step": step + 1}
+
+    def end_d0(self, state, carry):
+        return state.replace(params={**state.params, "noise": carry}) if self.bandit.beta > 0 else state
+
     def update(self, state, student_actor, obs_normalized, raw_actions, meta_reward):
         """The chosen arm's value toward the meta reward (no update before the meta reward has a baseline)."""
         p = state.params
@@ -97,6 +129,8 @@ def _validate(config) -> None:
         raise ValueError(f"bandit.scales must be one or more finite numbers >= 0, got {b.scales!r}")
     if not 0 <= b.epsilon <= 1:
         raise ValueError(f"bandit.epsilon must be in [0, 1], got {b.epsilon!r}")
+    if not (isinstance(b.beta, (int, float)) and math.isfinite(b.beta) and b.beta >= 0):
+        raise ValueError(f"bandit.beta must be a finite number >= 0 (0 white, 1 pink, 2 red), got {b.beta!r}")
     if not 0 < b.step_size <= 1:
         raise ValueError(f"bandit.step_size must be in (0, 1], got {b.step_size!r}")
     if config.meta.teacher == NAME and config.meta.normalize_meta_reward:
@@ -106,5 +140,6 @@ def _validate(config) -> None:
 
 NAME = "bandit"
 strategy.register_group(NAME, BanditConfig, validate=_validate)
-teacher.register_design(NAME, lambda cfg, student, config: BanditTeacher(cfg, student, config.bandit),
+teacher.register_design(NAME, lambda cfg, student, config: BanditTeacher(cfg, student, config.bandit,
+                                                                          config.episode_length),
                         "Gaussian noise around the student, its scale chosen per cycle by an epsilon-greedy bandit")

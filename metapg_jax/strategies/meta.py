@@ -205,11 +205,12 @@ def meta_cycle(trainer: Trainer, state: TrainState) -> tuple[TrainState, dict]:
 
     # 1. D0 from the teacher (clipped action to the env; the unclipped sample kept for log pi_e).
     def teacher_policy(carry, obs, first, k):
-        action, raw = teacher.sample(tstate.params, student.actor, norm(obs), k)
+        action, raw, carry = teacher.sample_step(tstate.params, carry, student.actor, norm(obs), first, k)
         return action, carry, raw
 
-    env_state, _, d0, d0_stats, d0_raw = rollout(trainer.env, teacher_policy, state.env_state, None, k_d0,
-                                                 m.explore_steps)
+    env_state, d0_carry, d0, d0_stats, d0_raw = rollout(trainer.env, teacher_policy, state.env_state,
+                                                        teacher.d0_carry(tstate), k_d0, m.explore_steps)
+    tstate = teacher.end_d0(tstate, d0_carry)
 
     # 2. Look-ahead: a copy of the student trained on D0 (and the buffer: 'mix'). `student` itself is not changed.
     n_look = m.lookahead_steps or cfg.run.train_steps

@@ -28,10 +28,11 @@ import math
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 from flax import struct
 
 from metapg_jax import action_noise, strategy
+from metapg_jax.action_noise import colored_sequence  # the sequence's draw (module docstring), shared with
+# the bandit teacher's colored D0 (metapg_jax.strategies.bandit)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -45,30 +46,6 @@ class PinkConfig:
 class ColoredState:
     sequence: jax.Array   # (T, action_size): this episode's unit-variance colored noise
     step: jax.Array       # int32: the episode's next step
-
-
-def amplitudes(beta: float, length: int) -> np.ndarray:
-    """w_k = max(k / T, 1 / T)^(-beta / 2) for k = 0..T/2 (module docstring)."""
-    f = np.fft.rfftfreq(length)
-    return np.maximum(f, 1.0 / length) ** (-beta / 2.0)
-
-
-def colored_sequence(key: jax.Array, beta: float, length: int, size: int) -> jax.Array:
-    """(length, size) Gaussian noise with power spectrum ~ 1/f^beta along the first axis, each column
-    independent, every entry of variance 1 in expectation."""
-    w = amplitudes(beta, length)
-    k_re, k_im = jax.random.split(key)
-    shape = (size, len(w))
-    real = jax.random.normal(k_re, shape) * w
-    imag = jax.random.normal(k_im, shape) * w
-    edges = [0] + ([len(w) - 1] if length % 2 == 0 else [])   # DC and (T even) Nyquist: real coefficients
-    imag = imag.at[:, edges].set(0.0)
-    real = real.at[:, edges].multiply(math.sqrt(2.0))
-    y = jnp.fft.irfft(real + 1j * imag, n=length, axis=-1)
-    middle = w[1:-1] if length % 2 == 0 else w[1:]
-    edge_power = w[0] ** 2 + (w[-1] ** 2 if length % 2 == 0 else 0.0)
-    variance = 2.0 / length ** 2 * (edge_power + 2.0 * np.sum(middle ** 2))
-    return (y / math.sqrt(variance)).T.astype(jnp.float32)
 
 
 def _init(config, action_size: int) -> ColoredState:
