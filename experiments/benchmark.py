@@ -191,13 +191,6 @@ def task_settings(a: argparse.Namespace, tasks: list[str]) -> dict[str, dict]:
     return out
 
 
-def aggregate_path(path: str) -> str:
-    """``path`` as the reports name their inputs (relative to the repository's root)."""
-    from experiments.aggregate import repo_path
-
-    return repo_path(path)
-
-
 def entries(a: argparse.Namespace) -> list[artefacts.Entry]:
     students = reproduce.parse_list(a.students, tuple(STRATEGIES), "student")
     baselines = parse_baselines(a.baseline)
@@ -264,11 +257,13 @@ def grid_plan(a: argparse.Namespace, argv: list[str]) -> engine.GridPlan:
               + f"; cells in {a.runs_dir}/<student>/{a.preset}/<task>/<method>, results in {a.results_dir}")
 
     def report(wall_seconds: float) -> None:
+        from experiments.aggregate import repo_path  # the reports name their inputs relative to the repository
+
         options = {"name": a.name, "students": list(dict.fromkeys(e.student for e in chosen)),
                    "strategies": [e.key for e in chosen], "baselines": artefacts.baselines_of(chosen),
                    "seeds": a.seeds, "seed": a.seed, "steps": a.steps, "physics": a.physics,
                    "overrides": a.overrides, **({"task_settings": own} if own else {}),
-                   **({"anchors": aggregate_path(a.anchors)} if a.anchors is not None else {}),
+                   **({"anchors": repo_path(a.anchors)} if a.anchors is not None else {}),
                    **({"preset": a.preset} if a.preset != artefacts.PRESET else {}), "argv": argv}
         manifest = bench_report.build(a.runs_dir, a.results_dir, chosen, tasks, plan=options,
                                       anchors_path=a.anchors, preset=a.preset,

@@ -8,14 +8,14 @@ import json
 import math
 import os
 
-from experiments.analysis.benchmark import MATTERS_DEFINITION
-from experiments.grid.methods import METHOD_NAMES, STUDENT_NAMES, task_name
+from experiments.analysis.benchmark import MATTERS_DEFINITION, Entry
+from experiments.grid.methods import task_name
+from metapg_jax.host.runfiles import json_number
 
 
 def _entry(key: str) -> str:
-    student, method = key.split("/", 1)
-    name, who = METHOD_NAMES.get(method, method), STUDENT_NAMES.get(student, student)
-    return name if name.startswith(who) else f"{who} {name}"  # "TD3 (OU noise)", "SAC + Meta", "TD3 Meta (...)"
+    """An entry's key (``<student>/<method>``) as the benchmark's tables name it (``Entry.label``)."""
+    return Entry(*key.split("/", 1)).label
 
 
 def write_matters(rows: list[dict], out_dir: str, footer: str) -> list[str]:
@@ -37,6 +37,6 @@ def write_matters(rows: list[dict], out_dir: str, footer: str) -> list[str]:
         f.write("\n".join(md))
     with open(paths[1], "w") as f:  # an infinite figure (no seed spread, entries apart) is written as null
         json.dump({"definition": MATTERS_DEFINITION,
-                   "tasks": [{**r, "figure": None if math.isinf(r["figure"]) else r["figure"]} for r in rows]},
+                   "tasks": [{**r, "figure": json_number(r["figure"])} for r in rows]},
                   f, indent=2)
     return paths
