@@ -153,10 +153,10 @@ def test_the_hypotheses_predictions_on_a_fabricated_screen(tmp_path):
     sac = learned.predictions(str(tmp_path / "res"), "sac", ["hopper"], [], None)["comparisons"]
     assert [(r["a"], r["b"]) for r in sac] == [(a, b) for _, a, b, _ in learned.COMPARISONS if b != "meta-tuned"]
 
-    # H4: 3 variants x 4 controls less the 3 pairs judged above; compared where both finished (the 3 variants
+    # H4: 3 variants x 5 controls less the 3 pairs judged above; compared where both finished (the 3 variants
     # against uniform D0, the paired-reward teacher against fixed noise).
     done = [r for r in pred["controls"] if r["state"] == "compared"]
-    assert len(pred["controls"]) == 9 and len(done) == 4
+    assert len(pred["controls"]) == 12 and len(done) == 4
     assert ("learned-residual", "control-fixed") not in {(r["a"], r["b"]) for r in pred["controls"]}
     assert stats.holm([stats.welch_test(finals[r["a"]], finals[r["b"]])[1] for r in done]) == \
         pytest.approx([r["p_holm"] for r in done])

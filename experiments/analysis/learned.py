@@ -70,7 +70,7 @@ from experiments.grid.methods import LEARNED, STRATEGIES, task_folder
 
 LAST = 100  # cycles per seed at the end of training that the diagnostics read
 VARIANTS = ("learned-paired", "learned-residual", "learned-bandit")
-CONTROLS = ("control-frozen", "control-uniform", "control-fixed", "control-noiseless")
+CONTROLS = ("control-frozen", "control-uniform", "control-fixed", "control-pink", "control-noiseless")
 # The hypotheses' predictions about final returns (results/learned/README.md): (hypothesis, variant, reference,
 # "beats" or "not worse"), each on every task; one family.
 COMPARISONS = (

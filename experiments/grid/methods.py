@@ -55,10 +55,13 @@ METHODS = {
                                teacher="residual"),
     "learned-bandit": method("meta", *PAIRED_CYCLE, preset="tuned", teacher="bandit"),
     # Controls in the same cycle: the paper's teacher frozen at its initialisation; D0 uniformly random; the student
-    # with TD3's Gaussian noise 0.1; the student alone.
+    # with TD3's Gaussian noise 0.1, or with pink noise at that scale (a colored D0, bandit.beta 1: a new sequence
+    # per exploring episode, as td3-pink's); the student alone.
     "control-frozen": method("meta", "meta.lr=0", *PAIRED_CYCLE, preset="tuned", teacher="independent"),
     "control-uniform": method("meta", *PAIRED_CYCLE, preset="tuned", teacher="uniform"),
     "control-fixed": method("meta", "bandit.scales=0.1", *PAIRED_CYCLE, preset="tuned", teacher="bandit"),
+    "control-pink": method("meta", "bandit.scales=0.1", "bandit.beta=1", *PAIRED_CYCLE, preset="tuned",
+                           teacher="bandit"),
     "control-noiseless": method("meta", "bandit.scales=0", *PAIRED_CYCLE, preset="tuned", teacher="bandit"),
     # Uniformly random actions while TD3 trains (--method=random): how much any directed exploration matters on a
     # task (the benchmark of the hard tasks' control).
@@ -74,6 +77,7 @@ METHOD_NAMES = {"meta-independent": "Meta (independent)", "meta-variance": "Meta
                 "sac-meta": "SAC + Meta (independent)", "learned-paired": "Meta (paired reward)",
                 "learned-residual": "residual teacher", "learned-bandit": "bandit over noise scales",
                 "control-frozen": "control: frozen teacher", "control-uniform": "control: uniform D0", "control-fixed": "control: D0 with noise 0.1",
+                "control-pink": "control: D0 with pink noise 0.1",
                 "control-noiseless": "control: noiseless D0", "td3-random": "TD3 (uniformly random actions)"}
 META, BASELINE = "meta-independent", "ddpg-paramnoise"
 # The DDPG each preset's Meta is compared against: the paper's baseline (adaptive parameter noise), and
@@ -100,7 +104,7 @@ STRATEGIES = {"td3": ("td3-normal", "td3-ou", "td3-paramnoise", "td3-pink", "td3
               "sac": ("sac-own", "sac-pink", "sac-meta")}
 # Each student's learned-exploration variants and their controls (results/learned/README.md, second attempt).
 LEARNED_METHODS = ("learned-paired", "learned-residual", "learned-bandit", "control-frozen", "control-uniform",
-                   "control-fixed", "control-noiseless")
+                   "control-fixed", "control-pink", "control-noiseless")
 LEARNED = {"td3": LEARNED_METHODS, "sac": LEARNED_METHODS}
 # Entries of the benchmark only when named (``experiments.benchmark --strategies``), never in its default plan: the
 # learned variants, and TD3 with uniformly random actions (a control for the hard tasks).
