@@ -20,7 +20,8 @@ interval lies above 0 and the separation ratio is above 1; a task whose effect p
 rank and counts as not passed. A variant goes on to a learner
 (#63 item 3) when it passes on at least ``PASS_TASKS`` of the tasks; if none does, that is the result.
 
-    python -m experiments.analysis.signal --results-dir results/learned/signal --variants paired,counterfactual-d0,counterfactual-mix
+    python -m experiments.analysis.signal --results-dir results/learned/signal \
+        --variants paired,counterfactual-d0,counterfactual-mix --tasks <the grids' tasks>
 
 Writes ``<results-dir>/signal.md`` and ``signal.json``. A cell that is not finished or has no archived cycles is
 listed as such, and its task is not judged for that variant.
@@ -46,9 +47,10 @@ SEED = 0
 LEVEL = 0.95
 PASS_TASKS = 3
 EFFECT_ALPHA = 0.05
-PASS_RULE = ("on a task: the D0s' final returns differ (Kruskal-Wallis p below 0.05), Spearman's rho between the D0s' mean meta reward and mean final return has its 95% seed-bootstrap "
-             "interval above 0, and the D0s' mean meta rewards differ (best-minus-worst gap above the seeds' pooled "
-             f"std); a variant goes on when it passes on at least {PASS_TASKS} tasks")
+PASS_RULE = ("on a task: the D0s' final returns differ (Kruskal-Wallis p below 0.05), Spearman's rho between the "
+             "D0s' mean meta reward and mean final return has its 95% seed-bootstrap interval above 0, and the D0s' "
+             "mean meta rewards differ (best-minus-worst gap above the seeds' pooled std); a variant goes on when it "
+             f"passes on at least {PASS_TASKS} tasks")
 
 
 def seed_rewards(cell_dir: str) -> np.ndarray | None:
@@ -156,9 +158,9 @@ def check(results_dir: str, variants: list[str], tasks: list[str], reps: int = R
             rows.append(row)
         passed = sum(r["outcome"] == "passed" for r in rows)
         pending = any(r["outcome"].startswith("not judged") for r in rows)
+        open_tasks = sum(r["outcome"].startswith("not judged") for r in rows)
         verdict = ("goes on" if passed >= PASS_TASKS else
-                   "pending" if pending and passed + sum(r["outcome"].startswith("not judged") for r in rows) >= PASS_TASKS
-                   else "stops")
+                   "pending" if pending and passed + open_tasks >= PASS_TASKS else "stops")
         out.append({"variant": variant, "tasks": rows, "passed": passed, "outcome": verdict})
     return {"pass_rule": PASS_RULE, "d0s": list(D0S), "student": STUDENT, "reps": reps, "variants": out}
 
