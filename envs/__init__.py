@@ -77,7 +77,9 @@ class TaskSpec:
     meta_schedule: MetaSchedule | None = None   # the paper's own cycle for the task; None: Algorithm 1's defaults
     table2: Table2Row | None = None       # the paper's Table 2 numbers; None: a task the paper did not run
     # The normalised score's 1 where the task fixes one (experiments.normalisation): the most an episode can
-    # return, or the return that counts as solved; None: a reference grid's cell supplies it (Table 2's tasks).
+    # return, or the return that counts as solved. Table 2's tasks have one too (gymnasium's solved threshold;
+    # Pendulum, which has none, its maximum), but their default anchors take the 1 from a reference grid's cell;
+    # ``python -m experiments.normalisation --fixed-references`` uses these (the dense set normalised as the hard one).
     reference_return: float | None = None
     reference: str = ""                   # what that 1 is, in words
 
@@ -87,30 +89,39 @@ class TaskSpec:
 # the other tasks keep Algorithm 1's defaults (100, 200, 50, 1; metapg_jax/strategies/meta.py).
 _LONG_CYCLE = MetaSchedule(explore_steps=1000, eval_steps=2000, train_steps=500, teacher_steps=100)
 
+_SOLVED = "gymnasium's solved threshold (reward_threshold of {})"
+
 TASKS: dict[str, TaskSpec] = {
     "pendulum": TaskSpec(
         "Pendulum-v1", 200, 900_000, eval_every=9_000, display_name="Pendulum",
-        entry_point="envs.pendulum:Pendulum", mujoco=False,
+        entry_point="envs.pendulum:Pendulum", mujoco=False, reference_return=0.0,
+        reference="its maximum, the most an episode can return (every step's cost is at least 0; Pendulum-v1 has no "
+                  "solved threshold)",
         table2=Table2Row(4, meta=(-123.0, 10.0), ddpg=(-206.0, 31.0))),
     "inverted_pendulum": TaskSpec(
         "InvertedPendulum-v5", 1000, 1_500_000, display_name="InvertedPendulum",
         entry_point="envs.gym_mujoco:InvertedPendulum", brax_name="inverted_pendulum", meta_schedule=_LONG_CYCLE,
+        reference_return=950.0, reference=_SOLVED.format("InvertedPendulum-v5"),
         table2=Table2Row(2, meta=(745.0, 27.0), ddpg=(499.0, 23.0))),
     "inverted_double_pendulum": TaskSpec(
         "InvertedDoublePendulum-v5", 1000, 1_500_000, display_name="InvertedDoublePendulum",
         entry_point="envs.gym_mujoco:InvertedDoublePendulum", brax_name="inverted_double_pendulum",
+        reference_return=9100.0, reference=_SOLVED.format("InvertedDoublePendulum-v5"),
         table2=Table2Row(1, meta=(7718.0, 277.0), ddpg=(2795.0, 1325.0))),
     "hopper": TaskSpec(
         "Hopper-v5", 1000, 1_000_000, display_name="Hopper",
         entry_point="envs.gym_mujoco:Hopper", brax_name="hopper",
+        reference_return=3800.0, reference=_SOLVED.format("Hopper-v5"),
         table2=Table2Row(3, meta=(205.0, 41.0), ddpg=(135.0, 42.0))),
     "halfcheetah": TaskSpec(
         "HalfCheetah-v5", 1000, 1_500_000, display_name="HalfCheetah",
         entry_point="envs.gym_mujoco:HalfCheetah", brax_name="halfcheetah", meta_schedule=_LONG_CYCLE,
+        reference_return=4800.0, reference=_SOLVED.format("HalfCheetah-v5"),
         table2=Table2Row(5, meta=(2011.0, 339.0), ddpg=(1594.0, 298.0))),
     "reacher": TaskSpec(
         "Reacher-v5", 50, 700_000, eval_every=6_000, display_name="Reacher",
         entry_point="envs.gym_mujoco:Reacher", brax_name="reacher",
+        reference_return=-3.75, reference=_SOLVED.format("Reacher-v5"),
         table2=Table2Row(6, meta=(-12.16, 1.19), ddpg=(-11.67, 3.39))),
     # Not in the paper: a sparse reward, where exploration decides the outcome (envs/mountain_car.py). No paper
     # budget: 60k steps (60 episodes' worth at the time limit), evaluated every 3k (20 evaluations). Its
@@ -119,7 +130,7 @@ TASKS: dict[str, TaskSpec] = {
     "mountain_car_continuous": TaskSpec(
         "MountainCarContinuous-v0", 999, 60_000, eval_every=3_000, display_name="MountainCarContinuous",
         entry_point="envs.mountain_car:MountainCarContinuous", mujoco=False, reference_return=90.0,
-        reference="gymnasium's solved threshold (reward_threshold of MountainCarContinuous-v0)"),
+        reference=_SOLVED.format("MountainCarContinuous-v0")),
 }
 # The task a config names when none is given (``metapg_jax.config.make_config``, ``experiments.run``).
 DEFAULT_TASK = "pendulum"

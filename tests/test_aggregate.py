@@ -133,3 +133,15 @@ def test_fixed_references_are_the_dmc_maximum_and_mountain_cars_solved_threshold
                                             "mountain_car_continuous": (car["random_return"], 90.0)}
     assert normalisation.main(["--tasks", "mountain_car_continuous,hopper", "--out", str(tmp_path / "x.json")]) == 2
     assert "pass them without the Table 2 tasks" in capsys.readouterr().err
+    # Table 2's tasks with their own fixed 1 (the dense set normalised as the hard one): Pendulum's maximum, 0,
+    # beside MountainCarContinuous's threshold; refused into Table 2's file.
+    dense = tmp_path / "dense.json"
+    assert normalisation.main(["--fixed-references", "--tasks", "pendulum,mountain_car_continuous", "--episodes", "2",
+                               "--out", str(dense)]) == 0
+    stored = json.loads(dense.read_text())["tasks"]
+    assert stored["pendulum"]["reference_return"] == 0.0 and "maximum" in stored["pendulum"]["reference"]
+    assert stored["mountain_car_continuous"]["reference_return"] == 90.0
+    assert normalisation.fixed_reference("hopper") is None  # Table 2's anchors keep the grid's cell
+    assert normalisation.fixed_reference("hopper", table2_tasks=True)["reference_return"] == 3800.0
+    assert normalisation.main(["--fixed-references", "--tasks", "pendulum"]) == 2
+    assert "--out results/normalisation-dense.json" in capsys.readouterr().err

@@ -145,3 +145,40 @@ def test_benchmark_rebuild_from_the_committed_archive_is_byte_identical(folder, 
     assert written == set(stored["files"]) | set(kept)
     compared = _compare(stored["files"], out, committed, folder)
     assert compared >= 3 * len(tasks) + 4  # per task md, json, per-seed csv; cost md and json, README, manifest
+
+
+def _without_build(path) -> dict:
+    with open(path) as f:
+        rep = json.load(f)
+    rep.pop("built")
+    return rep
+
+
+def test_a_benchmark_renormalised_with_its_own_anchors_is_its_own_aggregate(tmp_path, capsys):
+    """The aggregate rebuilt from the built task tables alone (experiments.analysis.render.renormalised) with the
+    anchors the benchmark used gives its aggregate.json number for number; bad folders are refused in one line."""
+    from experiments.analysis.render import renormalised
+
+    source, out = os.path.join(ROOT, "results", "exploration"), tmp_path / "same"
+    assert renormalised.main(["--results-dir", source, "--anchors", os.path.join(ROOT, "results", "normalisation.json"),
+                              "--out", str(out)]) == 0
+    got, want = _without_build(out / "aggregate.json"), _without_build(os.path.join(source, "aggregate.json"))
+    assert got.pop("source")["results_dir"] == "results/exploration" and got == want
+    for argv, why in ((["--results-dir", str(tmp_path)], "not a built benchmark"),
+                      (["--results-dir", source, "--out", source], "another folder")):
+        args = {"--anchors": os.path.join(ROOT, "results", "normalisation.json"), "--out": str(tmp_path / "x"),
+                **dict(zip(argv[::2], argv[1::2]))}
+        assert renormalised.main([x for kv in args.items() for x in kv]) == 2
+        err = capsys.readouterr().err
+        assert why in err and err.count("\n") == 1
+
+
+@pytest.mark.slow
+def test_the_committed_renormalised_dense_aggregate_is_rebuilt_number_for_number(tmp_path):
+    from experiments.analysis.render import renormalised
+
+    committed = os.path.join(ROOT, "results", "exploration", "dense-renormalised")
+    stored = _without_build(os.path.join(committed, "aggregate.json"))
+    assert renormalised.main(["--results-dir", os.path.join(ROOT, "results", "exploration"), "--anchors",
+                              os.path.join(ROOT, "results", "normalisation-dense.json"), "--out", str(tmp_path)]) == 0
+    assert _without_build(tmp_path / "aggregate.json") == stored
