@@ -29,6 +29,8 @@ import numpy as np
 from experiments.analysis import stats
 from experiments.grid.methods import METHOD_NAMES, noise_methods, task_name
 
+DEFAULT_ANCHORS = "results/normalisation.json"  # named by a report that does not record its anchors
+
 PROFILE_TAUS = np.linspace(0.0, 2.0, 81)  # the profiles' thresholds, widened where a seed scores above 2
 
 
@@ -114,7 +116,7 @@ def markdown(rep: dict, title: str, labels: dict | None = None) -> str:
              f"- {rep['definition']}.",
              "- anchors per task (random policy → 0, reference → 1): " + "; ".join(
                  f"{task_name(t)} {stats.fmt(a['random_return'])} → {stats.fmt(a['reference_return'])}"
-                 for t, a in rep["anchors"].items()) + " (results/normalisation.json).",
+                 for t, a in rep["anchors"].items()) + f" ({rep.get('built', {}).get('anchors') or DEFAULT_ANCHORS}).",
              *(["- a method with no cell of its own on a task is scored with the cell it equals there: " + "; ".join(
                  f"{task_name(k.split('/')[0])} {labels.get(k.split('/')[1], k.split('/')[1])} = "
                  f"{labels.get(v, v)}" for k, v in rep["standing_for"].items()) + "."] if rep.get("standing_for") else []),
