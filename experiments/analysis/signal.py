@@ -1,4 +1,4 @@
-"""The signal check of a meta reward, before any teacher learns from it (results/learned/signal/README.md).
+"""The signal check of a meta reward, before any teacher learns from it: only a reward that passes goes on to one.
 
 Each reward variant is one benchmark grid (a folder of its own) whose entries are fixed-D0 controls of the shared
 cycle (``D0S``: nothing in D0 learns); the variant is the cycle's ``meta.baseline`` / ``meta.lookahead_data``,

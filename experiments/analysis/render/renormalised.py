@@ -5,7 +5,7 @@ probabilities of improvement over each student's baseline and best fixed noise, 
 benchmark's own aggregate (``experiments.analysis.benchmark.aggregate_report``), nothing else changed.
 
     python -m experiments.analysis.render.renormalised --results-dir results/exploration \\
-        --anchors results/normalisation-dense.json --out results/exploration/renormalised
+        --anchors results/normalisation-dense.json --out results/exploration/dense-renormalised
 
 (The dense benchmark normalised as the hard one is: 0 = the random policy, 1 = the task's own fixed reference,
 ``python -m experiments.normalisation --fixed-references``, rather than a baseline's score.)
