@@ -152,6 +152,7 @@ class Trainer:
         cfg = self.config
         block = block if between is not None else num
         sample = lambda k: replay.sample(state.buffer, k, cfg.ddpg.batch_size)
+        traced = {}  # the metrics' shapes, kept by the first trace of ``run`` for ``skip``
 
         def run(_):
             student, explorer = state.student, state.explorer
@@ -165,10 +166,13 @@ class Trainer:
                 metrics.append(m)
                 weights.append(n / num)
             mean = jax.tree.map(lambda *xs: sum(w * x for w, x in zip(weights, xs)), *metrics)
+            traced.setdefault("metrics", jax.tree.map(lambda m: jax.ShapeDtypeStruct(m.shape, m.dtype), mean))
             return student, explorer, state.updates + num, mean
 
         def skip(_):  # the student's metrics (whatever it reports) are NaN for a cycle without updates
-            nan = jax.tree.map(lambda m: jnp.full(m.shape, jnp.nan, m.dtype), jax.eval_shape(run, None)[3])
+            if "metrics" not in traced:  # per_seed_cond traces ``run`` first; else trace it for the shapes alone
+                jax.eval_shape(run, None)
+            nan = jax.tree.map(lambda m: jnp.full(m.shape, jnp.nan, m.dtype), traced["metrics"])
             return state.student, state.explorer, state.updates, nan
 
         # A real conditional (per_seed_cond), not the per-seed select that vmap makes of a batched
