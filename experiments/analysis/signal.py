@@ -17,8 +17,8 @@ the same for every cell of the grid. Per variant and task, from each D0 cell's a
 
 The pass rule (``PASS_RULE``, fixed before the grids ran): on a task, a variant passes when the rank agreement's
 interval lies above 0 and the separation ratio is above 1; a task whose effect p is 0.05 or more has nothing to
-rank and counts as not passed. A variant goes on to a learner
-(#63 item 3) when it passes on at least ``PASS_TASKS`` of the tasks; if none does, that is the result.
+rank and counts as not passed. A variant goes on to a learner (a bandit over D0s first, then a teacher) when it
+passes on at least ``PASS_TASKS`` of the tasks; if none does, that is the result.
 
     python -m experiments.analysis.signal --results-dir results/learned/signal \
         --variants paired,counterfactual-d0,counterfactual-mix --tasks <the grids' tasks>
