@@ -48,12 +48,15 @@ def _back_to_the_session_settings():
 # ``-p tests.compile_profile``, results/measurements/test-suite.md). The README's test command hands whole
 # modules to the xdist workers (``--dist loadfile --no-loadscope-reorder``: a module's programs, caches and
 # session fixtures are built in one worker, not in both) in this order, longest first, so that the short
-# modules fill in around the long ones and no worker is left with a long module at the end.
+# modules fill in around the long ones and no worker is left with a long module at the end (the
+# modules not named here take a few seconds each).
 FIRST = ("test_train.py", "test_envs_mujoco.py", "test_longrun.py", "test_golden.py", "test_physics.py",
          "test_meta.py", "test_sweep.py", "test_dmc.py", "test_multiprocess.py", "test_td3.py", "test_reproduce.py",
          "test_artefacts.py", "test_sac.py", "test_ray.py", "test_cli.py", "test_notebooks.py", "test_gym_tasks.py",
          "test_dmc_locomotion.py", "test_driver.py", "test_wandb.py", "test_verify.py", "test_plugins.py",
-         "test_docs.py", "test_screen.py", "test_noise.py")
+         "test_docs.py", "test_screen.py", "test_noise.py", "test_counterfactual.py", "test_tensorboard.py",
+         "test_benchmark.py", "test_mountain_car.py", "test_runner.py", "test_signal.py", "test_imports.py",
+         "test_strategy.py")
 
 
 # (test file name, marked slow) of every test collected, before -m or -k deselected any (tests/test_tiers.py).
