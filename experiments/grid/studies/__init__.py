@@ -42,6 +42,8 @@ def studies() -> dict[str, Study]:
     """Every study of this package by name, in name order."""
     found = {}
     for info in pkgutil.iter_modules(__path__):
+        if info.name.startswith("_"):  # a part that several studies share, not a study
+            continue
         study = importlib.import_module(f"{__name__}.{info.name}").STUDY
         if study.name in found:
             raise ValueError(f"two studies are named {study.name!r}")
