@@ -163,6 +163,12 @@ register_kind(NoiseKind("none", _zeros, lambda config, process, key: (process, 0
 # The draw of colored noise (metapg_jax/strategies/pink.py's docstring has the method and its differences from the
 # reference package): the pink kind's and the bandit teacher's colored D0's.
 
+def check_beta(name: str, beta) -> None:
+    """``ValueError`` (one line) unless ``beta``, the colour of the setting ``name``, is a finite number >= 0."""
+    if not (isinstance(beta, (int, float)) and math.isfinite(beta) and beta >= 0):
+        raise ValueError(f"{name} must be a finite number >= 0 (0 white, 1 pink, 2 red), got {beta!r}")
+
+
 def amplitudes(beta: float, length: int) -> np.ndarray:
     """w_k = max(k / T, 1 / T)^(-beta / 2) for k = 0..T/2 (module docstring)."""
     f = np.fft.rfftfreq(length)

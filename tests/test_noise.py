@@ -13,7 +13,7 @@ from metapg_jax import action_noise
 from metapg_jax.config import DDPGConfig, make_config
 from metapg_jax.strategies import noise as noise_lib
 from metapg_jax.strategies.ddpg import DDPG
-from metapg_jax.strategies.pink import colored_sequence
+from metapg_jax.action_noise import colored_sequence
 from metapg_jax.train import make_train, seed_keys, vmap_seeds
 from tests.helpers import tiny_config
 

@@ -37,7 +37,7 @@ import jax
 import jax.numpy as jnp
 
 from metapg_jax import strategy, teacher
-from metapg_jax.action_noise import colored_sequence
+from metapg_jax.action_noise import check_beta, colored_sequence
 
 
 @dataclasses.dataclass(frozen=True)
@@ -129,8 +129,7 @@ def _validate(config) -> None:
         raise ValueError(f"bandit.scales must be one or more finite numbers >= 0, got {b.scales!r}")
     if not 0 <= b.epsilon <= 1:
         raise ValueError(f"bandit.epsilon must be in [0, 1], got {b.epsilon!r}")
-    if not (isinstance(b.beta, (int, float)) and math.isfinite(b.beta) and b.beta >= 0):
-        raise ValueError(f"bandit.beta must be a finite number >= 0 (0 white, 1 pink, 2 red), got {b.beta!r}")
+    check_beta("bandit.beta", b.beta)
     if not 0 < b.step_size <= 1:
         raise ValueError(f"bandit.step_size must be in (0, 1], got {b.step_size!r}")
     if config.meta.teacher == NAME and config.meta.normalize_meta_reward:

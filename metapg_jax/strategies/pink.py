@@ -24,15 +24,12 @@ sequence length is the task's time limit (the reference's default ``seq_len`` is
 from __future__ import annotations
 
 import dataclasses
-import math
 
 import jax
 import jax.numpy as jnp
 from flax import struct
 
 from metapg_jax import action_noise, strategy
-from metapg_jax.action_noise import colored_sequence  # the sequence's draw (module docstring), shared with
-# the bandit teacher's colored D0 (metapg_jax.strategies.bandit)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -55,7 +52,8 @@ def _init(config, action_size: int) -> ColoredState:
 
 def _episode_start(config, state: ColoredState, key: jax.Array) -> ColoredState:
     length, size = state.sequence.shape
-    return ColoredState(sequence=colored_sequence(key, config.pink.beta, length, size),
+    # the sequence's draw (module docstring), shared with the bandit teacher's colored D0
+    return ColoredState(sequence=action_noise.colored_sequence(key, config.pink.beta, length, size),
                         step=jnp.zeros((), jnp.int32))
 
 
@@ -66,9 +64,7 @@ def _sample(config, state: ColoredState, key: jax.Array):
 
 
 def _validate(config) -> None:
-    beta = config.pink.beta
-    if not (isinstance(beta, (int, float)) and math.isfinite(beta) and beta >= 0):
-        raise ValueError(f"pink.beta must be a finite number >= 0 (0 white, 1 pink, 2 red), got {beta!r}")
+    action_noise.check_beta("pink.beta", config.pink.beta)
 
 
 NAME = "pink"
