@@ -20,6 +20,8 @@ optimality gap, probability of improvement, performance profiles; stratified boo
 from __future__ import annotations
 
 import dataclasses
+import glob
+import json
 import os
 from typing import Sequence
 
@@ -123,6 +125,17 @@ def collect(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Se
                                    os.path.join(archive, task_folder(task), method), method, STUDENT_BASELINES[student])
         found = cells.collect(os.path.join(runs, preset), tasks, methods, archive_dir=archive)
         out.update({(student, t, m): r for (t, m), r in found.items()})
+    return out
+
+
+def read_task_tables(results_dir: str) -> dict[str, dict]:
+    """{task: its table} of a built benchmark's ``tasks/*.json`` (each finished cell's row with its per-seed final
+    returns), in file name order; {} where there are none."""
+    out = {}
+    for path in sorted(glob.glob(os.path.join(results_dir, "tasks", "*.json"))):
+        with open(path) as f:
+            table = json.load(f)
+        out[table["task"]] = table
     return out
 
 

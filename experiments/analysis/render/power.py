@@ -6,25 +6,22 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import glob
-import json
 import os
 import sys
 
 from experiments.analysis import power
+from experiments.analysis.benchmark import read_task_tables
 from experiments.grid.methods import task_name
 
 
 def pilot_finals(results_dir: str) -> dict[str, dict[str, list[float]]]:
     """{task: {"<student>/<method>": final returns per seed}} of every finished cell in ``results_dir/tasks``."""
     out = {}
-    for path in sorted(glob.glob(os.path.join(results_dir, "tasks", "*.json"))):
-        with open(path) as f:
-            table = json.load(f)
+    for task, table in read_task_tables(results_dir).items():
         cells = {f"{r['student']}/{r['method']}": [float(x) for x in r["per_seed"]]
                  for r in table["rows"] if r.get("status") == "done" and r.get("per_seed")}
         if len(cells) >= 2:  # the figure and the pooled spread need two entries
-            out[table["task"]] = cells
+            out[task] = cells
     return out
 
 

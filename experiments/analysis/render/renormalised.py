@@ -16,32 +16,27 @@ from __future__ import annotations
 
 import argparse
 import datetime
-import glob
 import json
 import os
 import sys
 
 
-def task_rows(results_dir: str, entries, tasks) -> dict[str, list[dict]]:
-    """{student: rows as ``experiments.analysis.benchmark.student_rows`` makes them} from the built task tables, in the
-    order of ``tasks`` (the plan's: the bootstrap resamples tasks in that order): per task and planned method its
-    cell's status and per-seed final returns ("not run" where the table has none)."""
-    tables = {}
-    for path in sorted(glob.glob(os.path.join(results_dir, "tasks", "*.json"))):
-        with open(path) as f:
-            table = json.load(f)
-        tables[table["task"]] = {(r["student"], r["method"]): r for r in table["rows"]}
+def task_rows(tables: dict[str, dict], entries, tasks) -> dict[str, list[dict]]:
+    """{student: rows as ``experiments.analysis.benchmark.student_rows`` makes them} from the built task tables
+    (``read_task_tables``), in the order of ``tasks`` (the plan's: the bootstrap resamples tasks in that order): per
+    task and planned method its cell's status and per-seed final returns ("not run" where the table has none)."""
+    rows = {task: {(r["student"], r["method"]): r for r in table["rows"]} for task, table in tables.items()}
     out = {}
     for student in dict.fromkeys(e.student for e in entries):
         methods = [e.method for e in entries if e.student == student]
-        out[student] = [{"task": task, "methods": {m: tables.get(task, {}).get((student, m), {"status": "not run"})
+        out[student] = [{"task": task, "methods": {m: rows.get(task, {}).get((student, m), {"status": "not run"})
                                                    for m in methods}} for task in tasks]
     return out
 
 
 def main(argv: list[str] | None = None) -> int:
     from experiments import aggregate, normalisation
-    from experiments.analysis.benchmark import Entry, aggregate_report
+    from experiments.analysis.benchmark import Entry, aggregate_report, read_task_tables
     from metapg_jax.host.provenance import record
 
     p = argparse.ArgumentParser(prog="python -m experiments.analysis.render.renormalised", description=__doc__,
@@ -52,7 +47,8 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     manifest_path = os.path.join(a.results_dir, "manifest.json")
     try:
-        if not os.path.isfile(manifest_path) or not glob.glob(os.path.join(a.results_dir, "tasks", "*.json")):
+        tables = read_task_tables(a.results_dir)
+        if not os.path.isfile(manifest_path) or not tables:
             raise ValueError(f"{a.results_dir}: not a built benchmark (no manifest.json or tasks/*.json)")
         if not os.path.isfile(a.anchors):
             raise ValueError(f"--anchors {a.anchors}: no such file")
@@ -68,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"error: {err}", file=sys.stderr)
         return 2
     tasks = list(plan["tasks"])
-    rows = task_rows(a.results_dir, entries, tasks)
+    rows = task_rows(tables, entries, tasks)
     rep, scored, why = aggregate_report(rows, entries, tasks, anchors)
     if rep is None:
         print(f"error: no aggregate: {why}", file=sys.stderr)
