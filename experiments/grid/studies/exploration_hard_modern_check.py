@@ -1,5 +1,5 @@
 from experiments.grid.studies import Study
-from experiments.grid.studies.exploration_hard_pilot import DEFAULT_STEPS, EVALUATIONS, STEPS
+from experiments.grid.studies.exploration_hard_pilot import budgets
 
 # The pilot's entries, seeds and budgets on two of its tasks under the modern preset (256-256 networks, one update
 # per env step, 25k random steps first): whether the cheaper paper preset keeps the strategies' order on the hard
@@ -15,7 +15,4 @@ STUDY = Study("exploration-hard-modern-check", "benchmark",
               "(results/exploration-hard-modern-check/)",
               {"name": "exploration-hard-modern-check", "tasks": ",".join(TASKS), "students": "td3,sac",
                "strategies": "td3-normal,td3-pink,td3-random,sac-own,sac-pink", "seeds": 5, "seed": 7000,
-               "preset": "modern",
-               "steps": DEFAULT_STEPS, "anchors": "results/normalisation-hard.json",
-               "task_steps": [f"{t}={n}" for t, n in STEPS.items() if t in TASKS],
-               "task_set": [f"{t}:run.eval_every={STEPS.get(t, DEFAULT_STEPS) // EVALUATIONS}" for t in TASKS]})
+               "preset": "modern", "anchors": "results/normalisation-hard.json", **budgets(TASKS)})

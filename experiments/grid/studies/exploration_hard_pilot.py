@@ -10,12 +10,18 @@ STEPS = {"mountain_car_continuous": 50_000, "dmc:finger-turn_hard": 500_000, "dm
 DEFAULT_STEPS = 250_000
 EVALUATIONS = 50
 
+
+def budgets(tasks) -> dict:
+    """The benchmark options of ``tasks``' budgets (``STEPS``, else ``DEFAULT_STEPS``) and evaluation intervals
+    (``EVALUATIONS`` per seed): this pilot's, and those of a check on some of its tasks."""
+    return {"steps": DEFAULT_STEPS, "task_steps": [f"{t}={n}" for t, n in STEPS.items() if t in tasks],
+            "task_set": [f"{t}:run.eval_every={STEPS.get(t, DEFAULT_STEPS) // EVALUATIONS}" for t in tasks]}
+
+
 STUDY = Study("exploration-hard-pilot", "benchmark",
               "the pilot of the hard-exploration benchmark: TD3 with Gaussian, pink and uniformly random actions, SAC "
               "with its own policy, on MountainCarContinuous and six DeepMind Control tasks at MaxInfoRL's budgets, 5 "
               "seeds from base seed 7000, C engine (results/exploration-hard-pilot/)",
               {"name": "exploration-hard-pilot", "tasks": ",".join(TASKS), "students": "td3,sac",
                "strategies": "td3-normal,td3-pink,td3-random,sac-own", "seeds": 5, "seed": 7000,
-               "steps": DEFAULT_STEPS, "anchors": "results/normalisation-hard.json",
-               "task_steps": [f"{t}={n}" for t, n in STEPS.items()],
-               "task_set": [f"{t}:run.eval_every={STEPS.get(t, DEFAULT_STEPS) // EVALUATIONS}" for t in TASKS]})
+               "anchors": "results/normalisation-hard.json", **budgets(TASKS)})
