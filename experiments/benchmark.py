@@ -191,6 +191,18 @@ def task_settings(a: argparse.Namespace, tasks: list[str]) -> dict[str, dict]:
     return out
 
 
+def narrow_task_options(a: argparse.Namespace) -> None:
+    """Keeps the per-task options' items (``--task-steps``, ``--task-seeds``, ``--task-set``) of ``--tasks`` only: a
+    study narrowed by ``--tasks`` (``python -m experiments.grid``) runs those tasks with their own settings and
+    leaves its other tasks' out, where the plain command refuses a setting of a task it does not run."""
+    keep = {t.strip() for t in re.split(r",(?![^()]*\))", a.tasks)}
+    a.task_steps, a.task_seeds = ([f"{t}={v}" for t, v in _task_items(items, option, "TASK=N",
+                                                                     lambda item: item.rpartition("=")) if t in keep]
+                                  for option, items in (("--task-steps", a.task_steps), ("--task-seeds", a.task_seeds)))
+    a.task_set = [f"{t}:{v}" for t, v in _task_items(a.task_set, "--task-set", "TASK:GROUP.FIELD=VALUE", _split_set,
+                                                     commas=False) if t in keep]
+
+
 def entries(a: argparse.Namespace) -> list[artefacts.Entry]:
     students = reproduce.parse_list(a.students, tuple(STRATEGIES), "student")
     baselines = parse_baselines(a.baseline)

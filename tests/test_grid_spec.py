@@ -105,6 +105,26 @@ def test_a_study_refuses_an_option_that_would_change_it(capsys):
     assert main(["--list"]) == 0 and "table2-c" in capsys.readouterr().out
 
 
+def test_a_study_narrowed_to_some_tasks_keeps_their_own_settings_and_drops_the_others():
+    """``--tasks`` narrows a benchmark study with per-task budgets and overrides: the kept task keeps its own, the
+    others' are left out (the benchmark command alone refuses a setting of a task it does not run)."""
+    from experiments import benchmark
+    from experiments.grid.__main__ import parse_study
+    from experiments.grid.studies import studies
+
+    study = studies()["exploration-hard-modern-check"]
+    _, a = parse_study(study, ["--tasks", "mountain_car_continuous"])
+    assert a.task_steps == ["mountain_car_continuous=50000"]
+    assert a.task_set == ["mountain_car_continuous:run.eval_every=1000"]
+    per_task = benchmark.task_settings(a, ["mountain_car_continuous"])
+    assert per_task["mountain_car_continuous"]["steps"] == 50000
+    assert per_task["mountain_car_continuous"]["overrides"][-1] == "run.eval_every=1000"
+    _, whole = parse_study(study, [])  # not narrowed: every task's settings
+    assert len(whole.task_set) == 2 and whole.task_set[1].startswith("dmc:cartpole-swingup_sparse:")
+    with pytest.raises(ValueError, match="--task-set names 'dmc:cartpole-swingup_sparse', which is not one of"):
+        benchmark.task_settings(whole, ["mountain_car_continuous"])
+
+
 def test_reproduce_estimates_its_cells_when_asked(tmp_path, capsys, monkeypatch):
     """``--estimate`` with ``--dry-run``: every method calibrated on the calibration task, the other tasks scaled
     by DDPG's Gaussian noise there (``experiments.grid.estimate``; a fake calibration here)."""

@@ -11,7 +11,7 @@ A study fixes the options that define it (its kind's: tasks, methods or strategi
 base seed, budget, engine, overrides, folders); every other option of its kind (``experiments.reproduce``,
 ``experiments.screen`` or ``experiments.benchmark``) is given as for that command: ``--dry-run``, ``--launcher``,
 ``--ray-*``, ``--quiet``, checkpoint cadence, ``--runs-dir`` (where the run folders live, not committed; the archive
-and the report stay the study's). ``--tasks`` may narrow the study's tasks;
+and the report stay the study's). ``--tasks`` may narrow the study's tasks (each kept task with its own budget and overrides);
 ``--report-only`` trains nothing and rebuilds the report. An option that would change the study (``--seed 5`` on
 a study of base seed 2000) is refused: that is another grid, for the kind's own command.
 
@@ -54,6 +54,8 @@ def parse_study(study: Study, rest: list[str]):
             raise ValueError(f"study {study.name!r} is defined with {option} {value!r}; another value makes another "
                              f"grid: run python -m experiments.{study.kind} with the options you want")
         setattr(a, dest, value)
+    if study.kind == "benchmark" and "tasks" in study.settings:
+        module.narrow_task_options(a)
     return module, a
 
 
