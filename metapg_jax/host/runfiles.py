@@ -42,6 +42,15 @@ def json_number(x: float) -> float | None:
     return None if math.isnan(x) or math.isinf(x) else x
 
 
+def json_numbers(x: Any) -> Any:
+    """``x`` (dicts and lists of them, numbers, strings) with every float through ``json_number``."""
+    if isinstance(x, dict):
+        return {k: json_numbers(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [json_numbers(v) for v in x]
+    return json_number(x) if isinstance(x, float) else x
+
+
 class JsonlWriter:
     """Appends JSON lines and flushes after every batch, so a killed run keeps what it wrote."""
 

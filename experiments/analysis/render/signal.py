@@ -53,7 +53,7 @@ def markdown(result: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     from metapg_jax.host.provenance import record
-    from metapg_jax.host.runfiles import json_number, write_json_atomic
+    from metapg_jax.host.runfiles import json_numbers, write_json_atomic
 
     p = argparse.ArgumentParser(prog="python -m experiments.analysis.signal", description=signal.__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -75,14 +75,7 @@ def main(argv: list[str] | None = None) -> int:
               "built": datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
               "commit": prov.get("commit"), "dirty": prov.get("dirty")}
 
-    def clean(x):
-        if isinstance(x, dict):
-            return {k: clean(v) for k, v in x.items()}
-        if isinstance(x, list):
-            return [clean(v) for v in x]
-        return json_number(x) if isinstance(x, float) else x
-
-    write_json_atomic(os.path.join(a.results_dir, "signal.json"), clean(result))
+    write_json_atomic(os.path.join(a.results_dir, "signal.json"), json_numbers(result))
     tmp = os.path.join(a.results_dir, "signal.md.tmp")
     with open(tmp, "w") as f:
         f.write(markdown(result))
