@@ -1,7 +1,8 @@
 """A pytest plugin that records, per test, where its time went: JAX tracing, lowering and XLA compiling (the
 seconds JAX reports through ``jax.monitoring``), programs loaded from the persistent compile cache, and the
-programs that took over a second to compile. It measures the tests' own process only (not the
-subprocesses some tests start).
+programs that took over a second to compile (the tests' own process only, not the subprocesses some
+tests start), and the CPU seconds (user + system) of the test's process (``cpu``, all its threads) and of the
+subprocesses it started and waited for (``children_cpu``).
 
     python -m pytest -q -n 2 -p tests.compile_profile
 
@@ -11,6 +12,7 @@ writes one JSON line per test to ``$METAPG_COMPILE_PROFILE/<worker>.jsonl`` (def
 
 import json
 import os
+import resource
 import time
 
 import pytest
@@ -46,11 +48,19 @@ def pytest_configure(config):
     _reset()
 
 
+def _cpu() -> tuple[float, float]:
+    """(this process's CPU seconds, its waited-for children's), user + system."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime, children.ru_utime + children.ru_stime
+
+
 @pytest.hookimpl(hookwrapper=True)
 def pytest_runtest_protocol(item, nextitem):
     _reset()
-    start = time.perf_counter()
+    start, (own, children) = time.perf_counter(), _cpu()
     yield
+    own_end, children_end = _cpu()
+    _RECORD.update(cpu=own_end - own, children_cpu=children_end - children)
     folder = os.environ.get("METAPG_COMPILE_PROFILE", "compile-profile")
     os.makedirs(folder, exist_ok=True)
     row = {"test": item.nodeid, "seconds": round(time.perf_counter() - start, 3),
