@@ -5,6 +5,7 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from experiments.strength import cleanrl
@@ -76,3 +77,65 @@ def test_the_env_id_hook_takes_its_folder_off_pythonpath_before_importing_gymnas
                          timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == ["/elsewhere", "True"]
+
+
+def test_the_references_episodes_binned_into_our_chunks_and_the_final_return_by_hand():
+    from experiments.analysis import strength
+
+    episodes = [(5, 1.0), (10, 3.0), (11, 10.0), (25, 7.0), (31, 99.0)]  # 31: after the last chunk, left out
+    binned = strength.bin_episodes(episodes, [10, 20, 30])
+    np.testing.assert_array_equal(binned, [2.0, 10.0, 7.0])
+    assert np.isnan(strength.bin_episodes([(5, 1.0)], [10, 20])[1])
+    # the chunks ending after 90% of 100 steps: 95 and 100 (NaN left out)
+    assert strength.final_of(np.array([1.0, 2.0, 4.0, np.nan]), [50, 90, 95, 100], 100) == 4.0
+    assert np.isnan(strength.final_of(np.array([1.0, np.nan]), [50, 100], 100))
+
+
+def _reference(finals):
+    """A reference seed per final: one episode ending in each of the 10 chunks, the last one at ``final``."""
+    return [[(10 * (c + 1), 0.0 if c < 9 else f) for c in range(10)] for f in finals]
+
+
+def test_a_difference_beyond_the_seeds_spread_is_named_and_one_within_it_is_not():
+    from experiments.analysis import strength
+
+    ends = list(range(10, 101, 10))
+    ours = np.zeros((3, 10))
+    ours[:, 9] = [100.0, 110.0, 120.0]  # finals: the last chunk only (the last 10% of 100 steps)
+    far = strength.compare(_reference([10.0, 20.0, 30.0]), ends, ours, 100)
+    assert far["ours"]["finals"] == [100.0, 110.0, 120.0] and far["reference"]["finals"] == [10.0, 20.0, 30.0]
+    assert far["difference"] == pytest.approx(90.0) and far["pooled_std"] == pytest.approx(10.0)
+    assert far["difference_in_std"] == pytest.approx(9.0) and far["verdict"] == "beyond the seeds' spread"
+    lo, hi = far["ours"]["ci95"]
+    assert (lo + hi) / 2 == pytest.approx(110.0) and hi - lo == pytest.approx(2 * 4.302653 * 10 / np.sqrt(3), rel=1e-5)
+    near = strength.compare(_reference([105.0, 115.0, 125.0]), ends, ours, 100)
+    assert near["difference"] == pytest.approx(-5.0) and near["verdict"] == "within the seeds' spread"
+    assert strength.compare(_reference([5.0]), ends, ours, 100)["verdict"].startswith("not judged")
+    with pytest.raises(ValueError, match="not at the budget 200"):
+        strength.compare(_reference([5.0]), ends, ours, 200)
+
+
+def test_the_comparison_command_writes_its_page_from_csvs_and_a_run_folder(tmp_path, capsys):
+    import json
+
+    from experiments.analysis.render.strength import main
+    from tests.helpers import fabricate_run
+
+    run = tmp_path / "ours"
+    fabricate_run(str(run), "pendulum", "ddpg-normal", [[0.0] * 10] * 2, list(range(1000, 10001, 1000)))
+    rows = [json.loads(line) for line in open(run / "metrics.jsonl")]
+    with open(run / "metrics.jsonl", "w") as f:
+        for r in rows:
+            f.write(json.dumps({**r, "train_return": -100.0 * (r["seed"] + 1)}) + "\n")
+    for k, final in enumerate((-150.0, -140.0)):
+        (tmp_path / f"cleanrl-td3-pendulum-seed{k}.csv").write_text(
+            "step,episodic_return\n200,-900.0\n" + f"9500,{final}\n")
+    assert main(["--reference", str(tmp_path / "cleanrl-*.csv"), "--ours", str(run), "--name", "td3-pendulum",
+                 "--out", str(tmp_path / "out")]) == 0
+    assert "td3-pendulum: ours -150, CleanRL -145: within the seeds' spread" in capsys.readouterr().out
+    md = (tmp_path / "out" / "td3-pendulum.md").read_text()
+    assert "| ours | 2 | -100, -200 | -150 [" in md and "| CleanRL | 2 | -150, -140 | -145 [" in md
+    assert (tmp_path / "out" / "td3-pendulum.png").stat().st_size > 0
+    assert main(["--reference", str(tmp_path / "nothing-*.csv"), "--ours", str(run), "--name", "x",
+                 "--out", str(tmp_path / "out")]) == 2
+    assert "--reference matches no file" in capsys.readouterr().err

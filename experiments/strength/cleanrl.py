@@ -45,12 +45,12 @@ entropy -|A|, log-std squashed into [-5, 2]. Different:
   per update; its log-prob takes log(1 - tanh^2 + 1e-6), ours the exact value;
 * the first update after 25,001 (TD3) or 5,001 (SAC) stored steps in CleanRL, after 25,000 or 5,000 in ours.
 
-What is compared. CleanRL logs each training episode's return (TD3 with its exploration noise, SAC sampling its
-policy) at the step it ended; ours evaluates the deterministic policy (10 episodes every 15k steps on Hopper, 9,375
-on walker-walk) and records ``train_return``, the mean return of the exploring episodes that ended in each such
-chunk. Like is compared with like: CleanRL's episodes binned into our chunks against ``train_return``; a seed's
-final return is the mean of its training episodes that ended in the last 10% of the steps (``FINAL_FRACTION``),
-with a 95% t-interval over the 3 seeds. Our evaluation returns are shown beside them, never compared with CleanRL's.
+What is compared (``python -m experiments.analysis.strength``, which states the rule). CleanRL logs each training
+episode's return (TD3 with its exploration noise, SAC sampling its policy) at the step it ended; ours evaluates the
+deterministic policy and records ``train_return``, the mean return of the exploring episodes that ended in each
+chunk. Like is compared with like: CleanRL's episodes binned into our chunks against ``train_return``. The
+``final_return`` this script stores in ``run.json`` is a quick summary of one run (the mean of its episodes that
+ended in the last ``FINAL_FRACTION`` of the steps), not the comparison's.
 """
 
 from __future__ import annotations
