@@ -12,8 +12,8 @@ base seed, budget, engine, overrides, folders); every other option of its kind (
 ``experiments.screen`` or ``experiments.benchmark``) is given as for that command: ``--dry-run``, ``--launcher``,
 ``--ray-*``, ``--quiet``, checkpoint cadence, ``--runs-dir`` (where the run folders live, not committed; the archive
 and the report stay the study's). ``--tasks`` may narrow the study's tasks (each kept task with its own budget and
-overrides); ``--report-only`` trains nothing and rebuilds the report. An option that would change the study (``--seed 5`` on
-a study of base seed 2000) is refused: that is another grid, for the kind's own command.
+overrides); ``--report-only`` trains nothing and rebuilds the report. An option that would change the study
+(``--seed 5`` on a study of base seed 2000) is refused: that is another grid, for the kind's own command.
 
 Exit status: the kind's (0 done, 2 bad input, 3 a cell stopped on non-finite parameters, 130/143 interrupted).
 """
