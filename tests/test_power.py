@@ -129,3 +129,37 @@ def test_the_seed_plan_of_a_fabricated_pilot(tmp_path, capsys):
         args.update(dict(zip(bad[::2], bad[1::2])))
         assert render.main([x for kv in args.items() for x in kv]) == 2
         assert message in capsys.readouterr().err
+
+
+def test_the_projected_cost_of_a_seed_plan_from_the_pilots_cpu(tmp_path, capsys):
+    """CPU per seed: each finished cell's CPU over its seeds, averaged per task (unfinished or unrecorded cells left
+    out); projected hours: planned seeds x entries x that, summed against the cap."""
+    from experiments.analysis.render import power as render
+
+    cells = [{"task": "hopper", "status": "done", "seeds": 5, "cpu_seconds": 500.0},
+             {"task": "hopper", "status": "done", "seeds": 10, "cpu_seconds": 2000.0},    # 100 and 200 per seed
+             {"task": "hopper", "status": "running", "seeds": 5, "cpu_seconds": 9e9},
+             {"task": "reacher", "status": "done", "seeds": 5, "cpu_seconds": None}]
+    per_seed = power.cpu_per_seed(cells)
+    assert per_seed == {"hopper": 150.0}
+    rows = [{"task": "hopper", "seeds": 24}, {"task": "reacher", "seeds": 10}]
+    assert power.project_cost(rows, per_seed, 5) == pytest.approx(150.0 * 24 * 5 / 3600)  # 5 h
+    assert rows[0]["projected_cpu_hours"] == pytest.approx(5.0) and rows[1]["projected_cpu_hours"] is None
+    with pytest.raises(ValueError, match="entries must be at least 1"):
+        power.project_cost(rows, per_seed, 0)
+
+    pilot = _pilot(tmp_path / "pilot", {"hopper": {"x": ("done", [0.0, 100.0, 200.0]),
+                                                   "y": ("done", [300.0, 400.0, 500.0])}})
+    anchors = tmp_path / "anchors.json"
+    anchors.write_text(json.dumps({"tasks": {"hopper": {"random_return": 0.0, "reference_return": 1000.0}}}))
+    argv = ["--results-dir", str(pilot), "--anchors", str(anchors), "--comparisons", "4"]
+    assert render.main(argv + ["--cap-hours", "3"]) == 2 and "--cap-hours needs --entries" in capsys.readouterr().err
+    assert render.main(argv + ["--entries", "3"]) == 2 and "cost.json not found" in capsys.readouterr().err
+    (pilot / "cost.json").write_text(json.dumps({"cells": cells}))
+    assert render.main(argv + ["--entries", "3", "--cap-hours", "1"]) == 0
+    plan = json.loads((pilot / "seeds.json").read_text())
+    seeds = plan["tasks"][0]["seeds"]
+    assert plan["cost"]["total_hours"] == pytest.approx(150.0 * seeds * 3 / 3600)
+    md = (pilot / "seeds.md").read_text()
+    assert "| Hopper | 150.0 |" in md and "against a cap of 1 CPU h" in md
+    assert ("**over the cap**" in md) == (plan["cost"]["total_hours"] > 1)

@@ -160,6 +160,32 @@ def seed_plan(per_task: Mapping[str, Mapping[str, Sequence[float]]], anchors: Ma
     return rows
 
 
+def cpu_per_seed(cost_cells: Sequence[Mapping]) -> dict[str, float]:
+    """{task: CPU seconds per seed of one cell}: the mean over a pilot's finished cells that recorded their CPU
+    (``cost.json``'s ``cells``) of the cell's CPU over its seeds. A projection's unit, not a measurement of a larger
+    cell: a cell of more seeds steps and updates them in one program, so its CPU grows about linearly with them
+    (its compile does not)."""
+    per = {}
+    for c in cost_cells:
+        if c.get("status") == "done" and c.get("cpu_seconds") and c.get("seeds"):
+            per.setdefault(c["task"], []).append(float(c["cpu_seconds"]) / int(c["seeds"]))
+    return {t: float(np.mean(v)) for t, v in per.items()}
+
+
+def project_cost(rows: list[dict], per_seed: Mapping[str, float], entries: int) -> float:
+    """Adds each seed-plan row's ``projected_cpu_hours`` (its planned seeds x ``entries`` cells x the pilot's CPU
+    per seed; None where the pilot has no CPU record for the task) and returns their total in hours."""
+    if entries < 1:
+        raise ValueError(f"entries must be at least 1, got {entries}")
+    total = 0.0
+    for r in rows:
+        cost = per_seed.get(r["task"])
+        r["cpu_per_seed"] = cost
+        r["projected_cpu_hours"] = None if cost is None else cost * r["seeds"] * entries / 3600
+        total += r["projected_cpu_hours"] or 0.0
+    return total
+
+
 if __name__ == "__main__":  # the command's parsing and files are the rendering side's
     import sys
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import json
 import os
 import sys
 
@@ -48,6 +49,21 @@ def markdown(plan: dict) -> str:
                      f"{'more than ' + str(rule['maximum']) if r['capped'] else r['needed']} | {r['seeds']} | "
                      f"{r['detectable_fraction']:.3f} | {r['matters_spread']:.4g} ({r['spread_fraction']:.3f}; "
                      f"{r['matters_best']} over {r['matters_worst']}) | {_n(r['matters_figure'])} |")
+    cost = plan.get("cost")
+    if cost:
+        lines += ["", f"Projected CPU of the judged grid at these seeds ({cost['entries']} entries per task; the "
+                      f"pilot's own CPU per seed of a cell on this machine, `{cost['source']}`, times the planned "
+                      "seeds and entries; CPU grows about linearly with a cell's seeds, its compile does not: a "
+                      "projection, not a measurement):", "", "| task | CPU s per seed (pilot) | projected CPU h |",
+                  "|---|---|---|"]
+        lines += [f"| {task_name(r['task'])} | "
+                  f"{'–' if r['cpu_per_seed'] is None else format(r['cpu_per_seed'], '.1f')} | "
+                  f"{'–' if r['projected_cpu_hours'] is None else format(r['projected_cpu_hours'], '.2f')} |"
+                  for r in plan["tasks"]]
+        lines += ["", f"Total: {cost['total_hours']:.1f} CPU h" + (
+            f" against a cap of {cost['cap_hours']:g} CPU h" + (": **over the cap**" if cost["total_hours"] >
+                                                                cost["cap_hours"] else "")
+            if cost.get("cap_hours") else "") + "."]
     lines += ["", "As benchmark options: `" + " ".join(f"--task-seeds {r['task']}={r['seeds']}" for r in plan["tasks"])
               + "`", "", f"Built {plan['built']} at commit `{plan['commit']}`"
               + (" (uncommitted changes)" if plan["dirty"] else "") + f" from `{plan['pilot']}`.", ""]
@@ -70,6 +86,10 @@ def main(argv: list[str] | None = None) -> int:
                                                                 "task's range (default 0.1)")
     p.add_argument("--minimum", type=int, default=10, help="the fewest seeds a cell gets (default 10)")
     p.add_argument("--maximum", type=int, default=40, help="the most seeds a cell gets: the cost cap (default 40)")
+    p.add_argument("--entries", type=int, default=None,
+                   help="the judged grid's entries per task: project its CPU from the pilot's cost.json")
+    p.add_argument("--cap-hours", type=float, default=None, help="the grid's CPU cap in hours, to hold the projection "
+                                                                  "against (with --entries)")
     p.add_argument("--out", default=None, help="the folder of seeds.md and seeds.json (default --results-dir)")
     a = p.parse_args(argv)
     try:
@@ -82,6 +102,16 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"{a.results_dir}: no task has two finished cells")
         rows = power.seed_plan(finals, normalisation.load(a.anchors), a.fraction, a.comparisons, a.minimum,
                                a.maximum)
+        cost = None
+        if a.entries is not None:
+            source = os.path.join(a.results_dir, "cost.json")
+            if not os.path.isfile(source):
+                raise ValueError(f"--entries: {source} not found (build the pilot's artefacts first)")
+            with open(source) as f:
+                total = power.project_cost(rows, power.cpu_per_seed(json.load(f)["cells"]), a.entries)
+            cost = {"entries": a.entries, "source": source, "total_hours": total, "cap_hours": a.cap_hours}
+        elif a.cap_hours is not None:
+            raise ValueError("--cap-hours needs --entries")
     except ValueError as err:
         print(f"error: {err}", file=sys.stderr)
         return 2
@@ -93,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
             "rule": {"definition": "experiments.analysis.power.seed_plan", "fraction": a.fraction,
                      "comparisons": a.comparisons, "alpha": power.ALPHA, "power": power.POWER, "minimum": a.minimum,
                      "maximum": a.maximum, "anchors": a.anchors},
-            "tasks": rows}
+            "tasks": rows, **({"cost": cost} if cost else {})}
     write_json_atomic(os.path.join(out, "seeds.json"),  # an infinite figure (no seed spread) is written as null
                       {**plan, "tasks": [{k: json_number(v) if isinstance(v, float) else v for k, v in r.items()}
                                          for r in rows]})
@@ -105,5 +135,8 @@ def main(argv: list[str] | None = None) -> int:
               f"{'more than ' + str(a.maximum) if r['capped'] else r['needed']} seeds needed, {r['seeds']} planned "
               f"(detects {r['detectable_fraction']:.3f} of the range); best - worst entry {_n(r['matters_figure'])} "
               f"seed std")
+    if cost:
+        print(f"projected CPU at these seeds, {a.entries} entries per task: {cost['total_hours']:.1f} h"
+              + (f" (cap {a.cap_hours:g} h)" if a.cap_hours else ""))
     print(f"wrote {os.path.join(out, 'seeds.md')} and seeds.json")
     return 0
