@@ -163,8 +163,8 @@ def seed_plan(per_task: Mapping[str, Mapping[str, Sequence[float]]], anchors: Ma
 def cpu_per_seed(cost_cells: Sequence[Mapping]) -> dict[str, float]:
     """{task: CPU seconds per seed of one cell}: the mean over a pilot's finished cells that recorded their CPU
     (``cost.json``'s ``cells``) of the cell's CPU over its seeds. A projection's unit, not a measurement of a larger
-    cell: a cell of more seeds steps and updates them in one program, so its CPU grows about linearly with them
-    (its compile does not)."""
+    cell: a cell of more seeds steps and updates them in one program, whose CPU grows at most about linearly with
+    them (the vmapped updates share work, the compile is paid once), so a projection from it leans high."""
     per = {}
     for c in cost_cells:
         if c.get("status") == "done" and c.get("cpu_seconds") and c.get("seeds"):
