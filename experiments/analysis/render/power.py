@@ -53,9 +53,9 @@ def markdown(plan: dict) -> str:
     if cost:
         lines += ["", f"Projected CPU of the judged grid at these seeds ({cost['entries']} entries per task; the "
                       f"pilot's own CPU per seed of a cell on this machine, `{cost['source']}`, times the planned "
-                      "seeds and entries; a cell's CPU grows at most about linearly with its seeds, its compile is paid "
-                      "once: a projection that leans high, not a measurement):", "", "| task | CPU s per seed (pilot) | projected CPU h |",
-                  "|---|---|---|"]
+                      "seeds and entries; a cell's CPU grows at most about linearly with its seeds, its compile is "
+                      "paid once: a projection that leans high, not a measurement):", "",
+                  "| task | CPU s per seed (pilot) | projected CPU h |", "|---|---|---|"]
         lines += [f"| {task_name(r['task'])} | "
                   f"{'–' if r['cpu_per_seed'] is None else format(r['cpu_per_seed'], '.1f')} | "
                   f"{'–' if r['projected_cpu_hours'] is None else format(r['projected_cpu_hours'], '.2f')} |"
