@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import os
 
+from metapg_jax.host.runfiles import write_text_atomic
+
 BENCH_DIR = "results/benchmarks"  # where the records go by default (relative to the repository root)
 TARGETS = {"overhead": 1.2, "scaling_8": 2.5, "compile_s": 60.0, "rss_over_buffer": 2.0,
            "main_job_compile_s": 30.0}  # the README's main job on its default engine, cold, on a 2-core CPU
@@ -21,10 +23,7 @@ def write_section(path: str, name: str, text: str) -> None:
         new = old[:old.index(begin)] + block + old[old.index(end) + len(end):]
     else:
         new = old.rstrip() + "\n\n" + block + "\n"
-    tmp = path + ".tmp"
-    with open(tmp, "w") as fh:
-        fh.write(new)
-    os.replace(tmp, path)
+    write_text_atomic(path, new)
 
 
 def _date(r: dict) -> str:

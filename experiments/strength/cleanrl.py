@@ -69,6 +69,7 @@ import time
 from typing import NamedTuple
 
 from experiments.strength import cleanrl_venv as venv_code
+from metapg_jax.host.runfiles import write_text_atomic
 
 REPO = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 COMMIT = "fe8d8a03c41a7ef5b523e2e354bd01c363e786bb"  # vwxyzjn/cleanrl, 2026-04-20
@@ -201,10 +202,7 @@ def read_source(cleanrl: str, path: str) -> bytes:
 
 def write(path: str, data: bytes | str) -> None:
     os.makedirs(os.path.dirname(path), exist_ok=True)
-    tmp = path + ".tmp"
-    with open(tmp, "wb") as f:
-        f.write(data.encode() if isinstance(data, str) else data)
-    os.replace(tmp, path)
+    write_text_atomic(path, data)
 
 
 def venv_json(layout: Layout, code: str, *args: str) -> object:

@@ -14,11 +14,17 @@ import numpy as np
 
 def write_json_atomic(path: str, obj: Any) -> None:
     """Writes JSON to a temporary file in the same folder, then renames it over ``path``."""
+    write_text_atomic(path, json.dumps(obj, indent=2, default=_jsonable))
+
+
+def write_text_atomic(path: str, data: str | bytes) -> None:
+    """Writes text (or bytes) to a temporary file in the same folder, then renames it over ``path``: a reader
+    sees the old file or the new one, never half of one."""
     folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=".json")
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".tmp-", suffix=os.path.splitext(path)[1])
     try:
-        with os.fdopen(fd, "w") as f:
-            json.dump(obj, f, indent=2, default=_jsonable)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data.encode() if isinstance(data, str) else data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)

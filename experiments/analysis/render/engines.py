@@ -63,7 +63,7 @@ def markdown(result: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     from experiments import normalisation
     from metapg_jax.host.provenance import record
-    from metapg_jax.host.runfiles import json_numbers, write_json_atomic
+    from metapg_jax.host.runfiles import json_numbers, write_json_atomic, write_text_atomic
 
     p = argparse.ArgumentParser(prog="python -m experiments.analysis.engines", description=engines.__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -92,10 +92,7 @@ def main(argv: list[str] | None = None) -> int:
     os.makedirs(a.out, exist_ok=True)
 
     write_json_atomic(os.path.join(a.out, "engines.json"), json_numbers(result))
-    tmp = os.path.join(a.out, "engines.md.tmp")
-    with open(tmp, "w") as f:
-        f.write(markdown(result))
-    os.replace(tmp, os.path.join(a.out, "engines.md"))
+    write_text_atomic(os.path.join(a.out, "engines.md"), markdown(result))
     same = sum(t["same_order"] for t in result["tasks"])
     print(f"{same} of {len(result['tasks'])} tasks in the same order on {labels[0]} and {labels[1]}; wrote "
           f"{os.path.join(a.out, 'engines.md')} and engines.json")

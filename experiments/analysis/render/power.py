@@ -73,7 +73,7 @@ def markdown(plan: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     from experiments import normalisation
     from metapg_jax.host.provenance import record
-    from metapg_jax.host.runfiles import json_number, write_json_atomic
+    from metapg_jax.host.runfiles import json_number, write_json_atomic, write_text_atomic
 
     p = argparse.ArgumentParser(prog="python -m experiments.analysis.power", description=power.__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -127,9 +127,7 @@ def main(argv: list[str] | None = None) -> int:
     write_json_atomic(os.path.join(out, "seeds.json"),  # an infinite figure (no seed spread) is written as null
                       {**plan, "tasks": [{k: json_number(v) if isinstance(v, float) else v for k, v in r.items()}
                                          for r in rows]})
-    with open(os.path.join(out, "seeds.md.tmp"), "w") as f:
-        f.write(markdown(plan))
-    os.replace(os.path.join(out, "seeds.md.tmp"), os.path.join(out, "seeds.md"))
+    write_text_atomic(os.path.join(out, "seeds.md"), markdown(plan))
     for r in rows:
         print(f"{r['task']}: seed std {r['std_fraction']:.3f} of the range, "
               f"{'more than ' + str(a.maximum) if r['capped'] else r['needed']} seeds needed, {r['seeds']} planned "

@@ -53,7 +53,7 @@ def markdown(result: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     from metapg_jax.host.provenance import record
-    from metapg_jax.host.runfiles import json_numbers, write_json_atomic
+    from metapg_jax.host.runfiles import json_numbers, write_json_atomic, write_text_atomic
 
     p = argparse.ArgumentParser(prog="python -m experiments.analysis.signal", description=signal.__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -76,10 +76,7 @@ def main(argv: list[str] | None = None) -> int:
               "commit": prov.get("commit"), "dirty": prov.get("dirty")}
 
     write_json_atomic(os.path.join(a.results_dir, "signal.json"), json_numbers(result))
-    tmp = os.path.join(a.results_dir, "signal.md.tmp")
-    with open(tmp, "w") as f:
-        f.write(markdown(result))
-    os.replace(tmp, os.path.join(a.results_dir, "signal.md"))
+    write_text_atomic(os.path.join(a.results_dir, "signal.md"), markdown(result))
     for v in result["variants"]:
         print(f"{v['variant']}: passed on {v['passed']} of {len(v['tasks'])} tasks: {v['outcome']}")
     print(f"wrote {os.path.join(a.results_dir, 'signal.md')} and signal.json")

@@ -54,7 +54,7 @@ def figure(name: str, result: dict, path: str) -> None:
 def main(argv: list[str] | None = None) -> int:
     from experiments.analysis import cells
     from metapg_jax.host.provenance import record
-    from metapg_jax.host.runfiles import json_numbers, write_json_atomic
+    from metapg_jax.host.runfiles import json_numbers, write_json_atomic, write_text_atomic
 
     p = argparse.ArgumentParser(prog="python -m experiments.analysis.strength", description=strength.__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -84,8 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     os.makedirs(a.out, exist_ok=True)
     write_json_atomic(os.path.join(a.out, f"{a.name}.json"), json_numbers(result))
     figure(a.name, result, os.path.join(a.out, f"{a.name}.png"))
-    with open(os.path.join(a.out, f"{a.name}.md"), "w") as f:
-        f.write(markdown(a.name, result))
+    write_text_atomic(os.path.join(a.out, f"{a.name}.md"), markdown(a.name, result))
     print(f"{a.name}: ours {fmt(result['ours']['mean'])}, {a.reference_label} {fmt(result['reference']['mean'])}: "
           f"{result['verdict']}; wrote {os.path.join(a.out, a.name)}.md/.json/.png")
     return 0
