@@ -125,6 +125,41 @@ def test_a_study_narrowed_to_some_tasks_keeps_their_own_settings_and_drops_the_o
         benchmark.task_settings(whole, ["mountain_car_continuous"])
 
 
+def test_a_narrowed_study_runs_its_cells_and_leaves_the_studys_report_alone(tmp_path, capsys):
+    """The study's report covers every cell of it: a call narrowed by ``--tasks`` does not rebuild it from part of
+    them (``--report-only`` so narrowed is refused), unless ``--results-dir`` names a folder of its own; a task
+    outside the study is refused whether the study names its tasks or keeps its kind's."""
+    import argparse
+
+    from experiments.grid import engine
+    from experiments.grid.__main__ import main, parse_study
+    from experiments.grid.studies import studies
+
+    found = studies()
+    _, a = parse_study(found["exploration-hard-modern-check"], ["--tasks", "mountain_car_continuous"])
+    assert "report is not rebuilt" in a.skip_report
+    _, a = parse_study(found["exploration"], ["--tasks", "hopper"])  # the kind's tasks, narrowed
+    assert "'exploration'" in a.skip_report
+    _, whole = parse_study(found["exploration"], [])
+    assert not getattr(whole, "skip_report", None)
+    _, elsewhere = parse_study(found["exploration"], ["--tasks", "hopper", "--results-dir", str(tmp_path)])
+    assert not getattr(elsewhere, "skip_report", None)
+    for argv in (["exploration", "--tasks", "hopper", "--report-only"],
+                 ["table2-c", "--tasks", "hopper", "--report-only"]):  # table2-c names its results folder
+        assert main(argv) == 2
+        assert "--report-only with --tasks would rebuild study" in capsys.readouterr().err
+    assert main(["exploration", "--tasks", "gym:Walker2d-v5", "--dry-run"]) == 2
+    assert "study 'exploration' has no task 'gym:Walker2d-v5'" in capsys.readouterr().err
+
+    built = []
+    plan = engine.GridPlan([], ["hopper"], built.append)
+    ns = argparse.Namespace(dry_run=False, launcher="local", skip_report="not rebuilt: narrowed")
+    assert engine.run(ns, lambda: plan, report_only=False) == 0 and built == []
+    assert "not rebuilt: narrowed" in capsys.readouterr().out
+    del ns.skip_report
+    assert engine.run(ns, lambda: plan, report_only=False) == 0 and len(built) == 1
+
+
 def test_reproduce_estimates_its_cells_when_asked(tmp_path, capsys, monkeypatch):
     """``--estimate`` with ``--dry-run``: every method calibrated on the calibration task, the other tasks scaled
     by DDPG's Gaussian noise there (``experiments.grid.estimate``; a fake calibration here)."""

@@ -12,7 +12,10 @@ base seed, budget, engine, overrides, folders); every other option of its kind (
 ``experiments.screen`` or ``experiments.benchmark``) is given as for that command: ``--dry-run``, ``--launcher``,
 ``--ray-*``, ``--quiet``, checkpoint cadence, ``--runs-dir`` (where the run folders live, not committed; the archive
 and the report stay the study's). ``--tasks`` may narrow the study's tasks (each kept task with its own budget and
-overrides); ``--report-only`` trains nothing and rebuilds the report. An option that would change the study
+overrides): the narrowed call runs and archives those tasks' cells and leaves the study's report as it is (the report
+covers every cell of the study: the whole study's command rebuilds it, skipping finished cells), unless
+``--results-dir`` names a folder of its own, which then gets a report of the kept tasks alone;
+``--report-only`` trains nothing and rebuilds the report. An option that would change the study
 (``--seed 5`` on a study of base seed 2000) is refused: that is another grid, for the kind's own command.
 
 Exit status: the kind's (0 done, 2 bad input, 3 a cell stopped on non-finite parameters, 130/143 interrupted).
@@ -40,15 +43,23 @@ def parse_study(study: Study, rest: list[str]):
     report = "--report-only" if study.kind == "screen" else "--artefacts-only"
     a = parser.parse_args([report if x == "--report-only" else x for x in rest])
     defaults = vars(parser.parse_args([]))
+    tasks, given = study.settings.get("tasks", defaults["tasks"]), [t.strip() for t in a.tasks.split(",") if t.strip()]
+    outside = [t for t in given if t not in tasks.split(",")] if a.tasks != defaults["tasks"] else []
+    if outside:
+        raise ValueError(f"study {study.name!r} has no task {outside[0]!r}; its tasks: {tasks}")
+    narrowed = a.tasks != defaults["tasks"] and given != tasks.split(",")
+    if narrowed and a.results_dir in (defaults["results_dir"], study.settings.get("results_dir")):  # the study's own
+        if "--report-only" in rest or "--artefacts-only" in rest:
+            raise ValueError(f"--report-only with --tasks would rebuild study {study.name!r}'s report from part of its "
+                             "cells: drop --tasks, or give --results-dir DIR for a report of those tasks alone")
+        a.skip_report = f"--tasks narrowed study {study.name!r}: its report is not rebuilt from part of its cells " \
+                        f"(python -m experiments.grid {study.name} --report-only rebuilds it)"
     for dest, value in study.settings.items():
         given = getattr(a, dest)
         if dest == "runs_dir" and given != defaults[dest]:
             continue  # where the run folders live does not change the grid
         if dest == "tasks" and given != defaults[dest]:
-            outside = [t for t in given.split(",") if t.strip() and t.strip() not in value.split(",")]
-            if outside:
-                raise ValueError(f"study {study.name!r} has no task {outside[0]!r}; its tasks: {value}")
-            continue
+            continue  # a narrowing (checked above)
         if given != defaults[dest] and given != value:
             option = "--" + dest.replace("_", "-").replace("overrides", "set")
             raise ValueError(f"study {study.name!r} is defined with {option} {value!r}; another value makes another "

@@ -12,7 +12,8 @@ every named study of ``experiments.grid.studies``) says only which cells it has 
    each is resumed from its checkpoint, recorded with its provenance and archived as soon as it finishes
    (``experiments.training.grid_cells``);
 4. report: the command's report rebuilt from whatever the archive holds (also after a Ctrl-C, and alone with
-   ``--report-only`` / ``--artefacts-only``); not after a SIGTERM, which a scheduler follows with a kill.
+   ``--report-only`` / ``--artefacts-only``); not after a SIGTERM, which a scheduler follows with a kill, nor for a
+   study narrowed to some of its tasks (``a.skip_report``, set by ``experiments.grid``: the line it prints says why).
 
 Exit status: 0 every cell finished (a dry run: the plan printed); 1 a dry run whose calibration runs all failed;
 2 bad input; 3 some cell stopped on non-finite parameters (the others still ran); 130 interrupted by Ctrl-C: the
@@ -71,6 +72,9 @@ def run(a: argparse.Namespace, plan: Callable[[], GridPlan], report_only: bool) 
     if status == 143:
         print(f"{p.word} stopped by SIGTERM: its report is not built; run the same command again to resume it",
               file=sys.stderr, flush=True)
+        return status
+    if getattr(a, "skip_report", None):
+        print(a.skip_report, flush=True)
         return status
     p.report(round(time.perf_counter() - t0, 2))
     return status
