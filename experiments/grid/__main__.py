@@ -43,11 +43,12 @@ def parse_study(study: Study, rest: list[str]):
     report = "--report-only" if study.kind == "screen" else "--artefacts-only"
     a = parser.parse_args([report if x == "--report-only" else x for x in rest])
     defaults = vars(parser.parse_args([]))
-    tasks, given = study.settings.get("tasks", defaults["tasks"]), [t.strip() for t in a.tasks.split(",") if t.strip()]
-    outside = [t for t in given if t not in tasks.split(",")] if a.tasks != defaults["tasks"] else []
+    tasks = study.settings.get("tasks", defaults["tasks"]).split(",")
+    kept = [t.strip() for t in a.tasks.split(",") if t.strip()] if a.tasks != defaults["tasks"] else tasks
+    outside = [t for t in kept if t not in tasks]
     if outside:
-        raise ValueError(f"study {study.name!r} has no task {outside[0]!r}; its tasks: {tasks}")
-    narrowed = a.tasks != defaults["tasks"] and given != tasks.split(",")
+        raise ValueError(f"study {study.name!r} has no task {outside[0]!r}; its tasks: {','.join(tasks)}")
+    narrowed = kept != tasks
     if narrowed and a.results_dir in (defaults["results_dir"], study.settings.get("results_dir")):  # the study's own
         if "--report-only" in rest or "--artefacts-only" in rest:
             raise ValueError(f"--report-only with --tasks would rebuild study {study.name!r}'s report from part of its "
