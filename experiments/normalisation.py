@@ -88,6 +88,28 @@ def reference_returns(path: str = REFERENCE_GRID, method: str = REFERENCE_METHOD
     return out
 
 
+def describe_reference(path: str, tasks=None, name=str) -> str:
+    """What a normalised score of 1 is in the anchors file at ``path``, for a page's text: Table 2's DDPG with
+    parameter noise (``results/normalisation.json``), another grid's method, or each task's own fixed reference (the
+    ``tasks``' ``reference`` texts with their returns, grouped; default: every task of the file; ``name(task)``
+    names a task)."""
+    with open(path) as f:
+        doc = json.load(f)
+    ref = doc.get("reference", {})
+    if "grid" in ref:
+        grid, method = ref["grid"], ref.get("method", REFERENCE_METHOD)
+        if grid == "results/table2.json" and method == REFERENCE_METHOD:
+            return "Table 2's DDPG with parameter noise at the paper's budget"
+        return f"the mean final return of `{method}` in `{grid}`"
+    groups: dict[tuple[str, float], list[str]] = {}
+    for task in doc["tasks"] if tasks is None else tasks:
+        a = doc["tasks"][task]
+        groups.setdefault((a.get("reference", ref.get("kind", "the task's reference")), float(a["reference_return"])),
+                          []).append(name(task))
+    parts = [f"{text}, {value:,g} ({', '.join(names)})" for (text, value), names in groups.items()]
+    return "each task's own fixed reference: " + "; ".join(parts)
+
+
 def load(path: str = DEFAULT_OUT) -> dict[str, tuple[float, float]]:
     """task -> (low, high): the random policy's and the reference's returns from the anchors file."""
     with open(path) as f:

@@ -217,7 +217,8 @@ def _baselines_text(entries: Sequence[Entry]) -> str:
 
 
 def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[Entry], tasks: Sequence[str],
-                 rep: dict | None, totals: dict, footer: str) -> str:
+                 rep: dict | None, totals: dict, footer: str, reference: str = "") -> str:
+    """The folder's README; ``reference``: what a normalised score of 1 is (``normalisation.describe_reference``)."""
     plan = manifest["benchmark"]
     labels = {e.key: e.label for e in entries}
     interval = lambda v: f"{stats.fmt(v['point'], 2)} [{stats.fmt(v['lo'], 2)}, {stats.fmt(v['hi'], 2)}]"
@@ -264,8 +265,8 @@ def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[
         anchors = rep.get("built", {}).get("anchors", "results/normalisation.json")
         lines += [f"Over {', '.join(task_name(t) for t in rep['tasks'])}"
                   + (f"; left out: {'; '.join(rep['left_out'])}" if rep["left_out"] else "")
-                  + f". Normalised final returns (0 = a uniformly random policy, 1 = Table 2's DDPG with parameter "
-                  f"noise at the paper's budget; `{anchors}`); 95% stratified bootstrap intervals (`aggregate.md`).",
+                  + f". Normalised final returns (0 = a uniformly random policy, 1 = {reference}; `{anchors}`); 95% "
+                  "stratified bootstrap intervals (`aggregate.md`).",
                   "", "| student | strategy | IQM | mean | optimality gap |", "|---|---|---|---|---|"]
         for e in entries:
             if e.key in rep["methods"]:
@@ -361,7 +362,8 @@ def build(runs_dir: str, results_dir: str, entries: Sequence[Entry], tasks: Sequ
         "cost": totals, "verdict_counts": verdict_counts(per_task, entries, tasks),
         **({"aggregate": {"tasks": rep["tasks"], "left_out": rep["left_out"],
                           "best_fixed_noise": rep["best_fixed_noise"]}} if rep else {"aggregate_not_built": why})}
-    write_readme(results_dir, manifest, per_task, entries, tasks, rep, totals, footer)
+    write_readme(results_dir, manifest, per_task, entries, tasks, rep, totals, footer,
+                 normalisation.describe_reference(anchors_path, rep["tasks"], task_name) if rep else "")
     with open(os.path.join(results_dir, "manifest.json"), "w") as f:
         json.dump(manifest, f, indent=2, default=tables_md.json_default)
     return manifest
