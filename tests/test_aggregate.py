@@ -145,3 +145,26 @@ def test_fixed_references_are_the_dmc_maximum_and_mountain_cars_solved_threshold
     assert normalisation.fixed_reference("hopper", table2_tasks=True)["reference_return"] == 3800.0
     assert normalisation.main(["--fixed-references", "--tasks", "pendulum"]) == 2
     assert "--out results/normalisation-dense.json" in capsys.readouterr().err
+
+
+def test_a_page_says_what_a_score_of_one_is_from_the_anchors_file(tmp_path):
+    """Table 2's file: its DDPG with parameter noise; a file of fixed references: each task's own, grouped by
+    reference and limited to the tasks asked for."""
+    table2 = tmp_path / "table2.json"
+    table2.write_text(json.dumps({"reference": {"grid": "results/table2.json", "method": "ddpg-paramnoise"},
+                                  "tasks": {"pendulum": {"random_return": -1200.0, "reference_return": -200.0}}}))
+    assert normalisation.describe_reference(str(table2)) == "Table 2's DDPG with parameter noise at the paper's budget"
+    other = tmp_path / "other.json"
+    other.write_text(json.dumps({"reference": {"grid": "results/td3.json", "method": "td3-normal"}, "tasks": {}}))
+    assert normalisation.describe_reference(str(other)) == "the mean final return of `td3-normal` in `results/td3.json`"
+    fixed = tmp_path / "fixed.json"
+    maximum = "the suite's maximum"
+    fixed.write_text(json.dumps({"reference": {"kind": "each task's own fixed reference"}, "tasks": {
+        "mountain_car_continuous": {"random_return": -32.0, "reference_return": 90.0, "reference": "solved"},
+        "dmc:reacher-hard": {"random_return": 8.0, "reference_return": 1000.0, "reference": maximum},
+        "dmc:hopper-hop": {"random_return": 0.0, "reference_return": 1000.0, "reference": maximum}}}))
+    assert normalisation.describe_reference(str(fixed), ["mountain_car_continuous", "dmc:reacher-hard"],
+                                            str.upper) == (
+        "each task's own fixed reference: solved, 90 (MOUNTAIN_CAR_CONTINUOUS); "
+        "the suite's maximum, 1,000 (DMC:REACHER-HARD)")
+    assert normalisation.describe_reference(str(fixed)).endswith("1,000 (dmc:reacher-hard, dmc:hopper-hop)")
