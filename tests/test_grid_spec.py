@@ -83,8 +83,8 @@ def test_every_study_resolves_every_stored_cell_of_its_grid(capsys, tmp_path):
     from experiments.grid.__main__ import main
     from experiments.grid.studies import studies
 
-    unfinished = {"table2-c", "exploration-hard-modern-check", "exploration-hard-pilot-sac-pink",
-                  "learned-signal-paired", "learned-signal-counterfactual-d0", "learned-signal-counterfactual-mix"}
+    unfinished = {"table2-c", "exploration-hard-modern-check", "learned-signal-paired",
+                  "learned-signal-counterfactual-d0", "learned-signal-counterfactual-mix"}
     for name, study in studies().items():
         extra = ["--no-calibrate"] if study.kind == "benchmark" else []
         assert main([name, "--dry-run", "--runs-dir", str(tmp_path / "runs"), *extra]) == 0, name
