@@ -217,8 +217,7 @@ def _baselines_text(entries: Sequence[Entry]) -> str:
 
 
 def write_readme(out_dir: str, manifest: dict, tables_: dict, entries: Sequence[Entry], tasks: Sequence[str],
-                 rep: dict | None, totals: dict, footer: str, reference: str = "") -> str:
-    """The folder's README; ``reference``: what a normalised score of 1 is (``normalisation.describe_reference``)."""
+                 rep: dict | None, totals: dict, footer: str, reference: str = "") -> str:  # reference: a score of 1
     plan = manifest["benchmark"]
     labels = {e.key: e.label for e in entries}
     interval = lambda v: f"{stats.fmt(v['point'], 2)} [{stats.fmt(v['lo'], 2)}, {stats.fmt(v['hi'], 2)}]"
