@@ -2,9 +2,9 @@ from experiments.grid.studies import Study
 from experiments.grid.studies.exploration_hard_pilot import TASKS
 
 # The exploration benchmark where exploration decides the outcome (results/exploration-hard/): the pilot's seven tasks
-# and budgets (MaxInfoRL's; 50 evaluations per seed, so a final return averages 5), every entry the issue names, the
-# paper preset (the rule of results/exploration-hard-modern-check/NOTES.md: no entry's return on MountainCarContinuous
-# is higher at the modern preset), MuJoCo's C engine, fresh seeds (base 8000: used by no earlier grid).
+# at MaxInfoRL's budgets (cut to whole cycles, below), every entry the issue names, the paper preset (the rule of
+# results/exploration-hard-modern-check/NOTES.md: no entry gains 0.1 of MountainCarContinuous's range at the modern
+# preset), MuJoCo's C engine, fresh seeds (base 8000: used by no earlier grid).
 #
 # Seeds by power (results/exploration-hard-pilot/seeds.md, declared before any cell runs): per task the fewest seeds,
 # at least 10, whose first Holm step of 42 comparisons detects 0.1 of the task's range with 80% power, given the
